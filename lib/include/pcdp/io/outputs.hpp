@@ -1,0 +1,45 @@
+// Writers of the per-return products: returns.pcd (every input return exactly once, with its
+// label) and cloud.pcd (the kept points). Fields are those of DESIGN.md "Outputs".
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "pcdp/io/pcd.hpp"
+
+namespace pcdp {
+struct Pass;
+}
+
+namespace pcdp::io {
+
+/// returns.pcd: x y z range amplitude pass line beam label stamp, then the input's extra fields
+/// (carried through). x y z are NaN where there is no point.
+class ReturnsWriter {
+ public:
+  explicit ReturnsWriter(const std::string& path);
+  void append(const Pass& pass);
+  void close();
+  std::uint64_t points() const { return writer_ ? writer_->points() : 0; }
+
+ private:
+  std::string path_;
+  std::unique_ptr<PcdWriter> writer_;
+  std::vector<PcdField> extra_;  ///< fixed by the first pass
+  std::string extra_source_;
+};
+
+/// cloud.pcd: the kept points, x y z range amplitude pass line beam stamp.
+class CloudWriter {
+ public:
+  explicit CloudWriter(const std::string& path);
+  void append(const Pass& pass);
+  void close() { writer_.close(); }
+  std::uint64_t points() const { return writer_.points(); }
+
+ private:
+  PcdWriter writer_;
+};
+
+}  // namespace pcdp::io

@@ -1,0 +1,14 @@
+// The pose CSV of DESIGN.md ("Input 2"): header  stamp,x,y,z,roll,pitch,yaw  (s, m, rad in the
+// pipeline's rpy_order), strictly increasing stamps, finite values.
+#pragma once
+
+#include <string>
+
+#include "pcdp/transforms.hpp"
+
+namespace pcdp::io {
+
+/// Throws InputError naming the file, the line (1-based, counting the header) and the column.
+PoseTrack read_pose_csv(const std::string& path, RpyOrder order);
+
+}  // namespace pcdp::io

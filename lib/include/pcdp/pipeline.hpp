@@ -1,0 +1,65 @@
+// Prepare, then execute. prepare() validates the whole pipeline (configuration, stage rules,
+// the pose file) and reads no scan; run() streams the passes through the stages one at a time
+// and writes the outputs atomically.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "pcdp/config.hpp"
+#include "pcdp/labels.hpp"
+#include "pcdp/stage.hpp"
+
+namespace pcdp {
+
+struct PassSummary {
+  std::string file;
+  std::uint64_t returns = 0;
+  std::uint64_t lines = 0;
+  std::uint64_t kept = 0;
+};
+
+struct RunSummary {
+  std::uint64_t input_returns = 0;
+  LabelHistogram labels{};
+  std::vector<PassSummary> passes;
+  std::vector<StageReport> stages;
+  std::vector<std::string> warnings;
+  double seconds = 0.0;
+  std::string output_dir;
+  std::vector<std::string> outputs;  ///< final paths written
+};
+
+/// Progress events: one per pass and stage ("read", stage names, "write").
+struct ProgressEvent {
+  std::size_t pass = 0;
+  std::size_t passes = 0;
+  std::string file;
+  std::string step;
+};
+using ProgressFn = std::function<void(const ProgressEvent&)>;
+
+class Pipeline {
+ public:
+  /// Builds every stage and checks the rules between them; loads the pose file. Throws
+  /// ConfigError / InputError. Reads no scan.
+  static Pipeline prepare(PipelineConfig config);
+
+  const PipelineConfig& config() const { return *config_; }
+  /// Streams every pass through the stages, writes returns.pcd, cloud.pcd, the stages' products
+  /// and report.json into output_dir, then renames them into place.
+  RunSummary run(const ProgressFn& progress = {});
+
+ private:
+  Pipeline() = default;
+  std::shared_ptr<PipelineConfig> config_;
+  RunContext context_;
+  std::vector<std::unique_ptr<Stage>> stages_;
+};
+
+/// The report of a run as JSON text (effective configuration, versions, counts, timings).
+std::string report_json(const PipelineConfig& config, const RunSummary& summary);
+
+}  // namespace pcdp

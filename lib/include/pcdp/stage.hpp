@@ -1,0 +1,76 @@
+// The stage interface and the explicit registry of built-in stages.
+//
+// A stage is one header + one source + one line in registry.cpp + one test file. Stages see one
+// pass at a time (passes are streamed); fusion stages accumulate across passes and write their
+// products in finish().
+#pragma once
+
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "pcdp/config.hpp"
+#include "pcdp/labels.hpp"
+#include "pcdp/options.hpp"
+#include "pcdp/transforms.hpp"
+
+namespace pcdp {
+
+struct Pass;
+
+/// What a stage did, filled in by the pipeline (counts, timings) and by the stage (metrics,
+/// warnings). Written to report.json.
+struct StageReport {
+  std::string name;
+  std::string type;
+  std::uint64_t in = 0;   ///< kept returns entering the stage
+  std::uint64_t out = 0;  ///< kept returns leaving it
+  LabelHistogram rejected{};  ///< returns this stage moved from kept to each label
+  double seconds = 0.0;
+  std::map<std::string, double> metrics;  ///< stage-specific numbers (e.g. "repaired")
+  std::vector<std::string> warnings;
+};
+
+/// Where a stage may write products (fusion outputs); paths are temporary until the run commits.
+class OutputSink {
+ public:
+  virtual ~OutputSink() = default;
+  /// A temporary path for `filename` in the output folder; renamed to its final name on commit.
+  virtual std::string staged_path(const std::string& filename) = 0;
+};
+
+class Stage {
+ public:
+  virtual ~Stage() = default;
+  /// Processes one pass in place: may set labels, points, ranges. Must not change which
+  /// returns exist (every input return is kept exactly once, DESIGN.md).
+  virtual void process(Pass& pass, StageReport& report) = 0;
+  /// After the last pass: write products, add run-level metrics.
+  virtual void finish(OutputSink& /*sink*/, StageReport& /*report*/) {}
+};
+
+/// Shared, read-only resources of a run, loaded in the prepare phase.
+struct RunContext {
+  const PipelineConfig* config = nullptr;
+  /// T_M_V(t); empty when the pipeline has no pose file (T_M_V = identity).
+  std::shared_ptr<const PoseTrack> poses;
+};
+
+struct StageInfo {
+  std::string type;
+  std::string summary;  ///< one line, for `pcd_pipeline stages`
+  OptionSchema schema;
+  /// Builds a configured instance; may throw ConfigError for rules across options.
+  std::function<std::unique_ptr<Stage>(const StageConfig&, const RunContext&)> create;
+};
+
+/// All built-in stages, in one explicit list (registry.cpp). No static self-registration: it
+/// silently loses stages in static builds.
+const std::vector<StageInfo>& builtin_stages();
+/// nullptr when unknown.
+const StageInfo* find_stage(const std::string& type);
+std::vector<std::string> stage_type_names();
+
+}  // namespace pcdp

@@ -1,0 +1,36 @@
+// Stage `register`: raw returns -> map frame (DESIGN.md "Units and frames").
+//
+// For every return: calibrated range (Ye & Borenstein eqs. 1-3, true = k * measured + b), the nod
+// angle at the return's own stamp (skew correction, skew.hpp), the point in the nod frame, the
+// mount T_V_N, and T_M_V interpolated at the return's stamp (linear position, slerp orientation):
+//   p_M = R_MV(t) * (R_VN * p_N + t_VN) + t_MV(t).
+// Labels (first that applies): no_return (range 0 or NaN), out_of_range (calibrated range outside
+// [sensor.range_min, sensor.range_max]), no_pose (stamp outside the pose file, or inside a gap
+// longer than max_pose_gap). Out-of-range returns still get their map point when a pose exists.
+#pragma once
+
+#include <memory>
+
+#include "pcdp/config.hpp"
+#include "pcdp/options.hpp"
+#include "pcdp/stage.hpp"
+#include "pcdp/transforms.hpp"
+
+namespace pcdp {
+
+struct RegisterParams {
+  bool skew_correction = true;
+  double max_pose_gap = 1.0;  ///< s; 0 disables the check
+};
+
+/// The schema of `register` (drives validation, describe and docs).
+const OptionSchema& register_schema();
+
+/// Pure function: registers `pass` in place (labels, range_cal, nod_at_return, x/y/z, origins).
+/// `poses` may be null (T_M_V = identity for every stamp).
+void register_pass(Pass& pass, const RegisterParams& params, const SensorParams& sensor,
+                   const Eigen::Isometry3d& T_V_N, const PoseTrack* poses);
+
+StageInfo register_stage_info();
+
+}  // namespace pcdp

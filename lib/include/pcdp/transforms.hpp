@@ -1,0 +1,97 @@
+// Frames, roll-pitch-yaw and pose interpolation. This header owns the RPY convention: every
+// rotation built from roll/pitch/yaw in the project goes through rpy_to_matrix().
+//
+// Frames (../shared/DESIGN.md): nod frame N (the laser on its nodding mount), vehicle frame V,
+// map frame M (z against gravity). Transforms are named by frames: T_M_V maps vehicle
+// coordinates into the map frame, so  p_M = T_M_V * T_V_N * p_N.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
+
+namespace pcdp {
+
+/// Order of the elementary rotations in a roll-pitch-yaw triple.
+enum class RpyOrder {
+  /// R = Rx(roll) * Ry(pitch) * Rz(yaw): Broten & Collier 2005, section 6.2 (after Paul 1981).
+  kXyz,
+  /// R = Rz(yaw) * Ry(pitch) * Rx(roll): ROS REP 103, aerospace convention.
+  kZyx,
+};
+
+const char* rpy_order_name(RpyOrder o);
+/// "xyz" or "zyx"; throws std::invalid_argument otherwise.
+RpyOrder rpy_order_from_name(const std::string& name);
+
+/// Right-handed elementary rotations, exactly as printed in Broten & Collier section 6.2.
+Eigen::Matrix3d rot_x(double angle);
+Eigen::Matrix3d rot_y(double angle);
+Eigen::Matrix3d rot_z(double angle);
+
+struct Rpy {
+  double roll = 0.0;
+  double pitch = 0.0;
+  double yaw = 0.0;
+};
+
+Eigen::Matrix3d rpy_to_matrix(const Rpy& rpy, RpyOrder order);
+/// Inverse of rpy_to_matrix with pitch in [-pi/2, pi/2], roll and yaw in (-pi, pi]. At gimbal
+/// lock (|pitch| = pi/2) yaw is set to 0 and roll absorbs the remaining rotation.
+Rpy matrix_to_rpy(const Eigen::Matrix3d& r, RpyOrder order);
+
+/// Rigid transform from a translation and roll-pitch-yaw in the given order.
+Eigen::Isometry3d make_transform(const Eigen::Vector3d& t, const Rpy& rpy, RpyOrder order);
+
+/// A return in the nod frame N (DESIGN.md): bearing nu > 0 to the left, nod eta > 0 above the
+/// horizon:  p_N = r * (cos nu cos eta, sin nu, cos nu sin eta).
+/// This is Broten & Collier's section 6.2 (p = d(cos psi, -sin psi) then the nod), with the in-plane
+/// angle measured counter-clockwise. Note the nod is a rotation about y by -eta: with the
+/// right-handed Rot(y, a) of section 6.2 a positive angle tips the x axis *down*, whereas the
+/// encoder (footnote 6) reads positive *above* the horizon.
+inline Eigen::Vector3d nod_frame_point(double range, double bearing, double nod) {
+  const double cn = std::cos(bearing), sn = std::sin(bearing);
+  const double ce = std::cos(nod), se = std::sin(nod);
+  return {range * cn * ce, range * sn, range * cn * se};
+}
+
+/// One row of a pose file: T_M_V at `stamp`.
+struct PoseSample {
+  double stamp = 0.0;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();
+};
+
+/// Linear in position, spherical (slerp, shortest arc) in orientation; s in [0, 1].
+PoseSample interpolate(const PoseSample& a, const PoseSample& b, double s);
+
+/// A time-ordered sequence of poses T_M_V(t), interpolated at any stamp inside its span.
+class PoseTrack {
+ public:
+  PoseTrack() = default;
+  /// Samples must have strictly increasing stamps (checked by the reader; asserted here).
+  explicit PoseTrack(std::vector<PoseSample> samples);
+
+  bool empty() const { return samples_.empty(); }
+  std::size_t size() const { return samples_.size(); }
+  double begin_stamp() const { return samples_.front().stamp; }
+  double end_stamp() const { return samples_.back().stamp; }
+  bool covers(double stamp) const {
+    return !samples_.empty() && stamp >= begin_stamp() && stamp <= end_stamp();
+  }
+  const std::vector<PoseSample>& samples() const { return samples_; }
+
+  /// T_M_V at `stamp`, which must be covered. `hint` is the index of the bracket used last
+  /// (pass the same variable for a sequence of near-monotonic stamps: O(1) per query).
+  Eigen::Isometry3d at(double stamp, std::size_t& hint) const;
+  /// Index k of the samples bracketing a covered `stamp`: samples[k].stamp <= stamp <= samples[k+1].stamp.
+  std::size_t bracket(double stamp, std::size_t hint) const;
+  /// Time between the two samples bracketing a covered `stamp` (0 with a single sample).
+  double gap_at(double stamp, std::size_t& hint) const;
+
+ private:
+  std::vector<PoseSample> samples_;
+};
+
+}  // namespace pcdp

@@ -1,0 +1,98 @@
+#include "pcdp/io/outputs.hpp"
+
+#include <cstring>
+
+#include "pcdp/errors.hpp"
+#include "pcdp/pass.hpp"
+
+namespace pcdp::io {
+
+namespace {
+std::vector<PcdField> base_fields(bool with_label) {
+  std::vector<PcdField> f = {{"x", 'F', 4, 1},     {"y", 'F', 4, 1},    {"z", 'F', 4, 1},
+                             {"range", 'F', 4, 1}, {"amplitude", 'F', 4, 1}, {"pass", 'U', 4, 1},
+                             {"line", 'U', 4, 1},  {"beam", 'U', 4, 1}};
+  if (with_label) f.push_back({"label", 'U', 1, 1});
+  f.push_back({"stamp", 'F', 8, 1});
+  return f;
+}
+
+template <typename T>
+std::uint8_t* put(std::uint8_t* dst, T v) {
+  std::memcpy(dst, &v, sizeof(T));
+  return dst + sizeof(T);
+}
+
+std::uint8_t* put_common(std::uint8_t* d, const Pass& p, std::size_t i) {
+  d = put(d, static_cast<float>(p.x[i]));
+  d = put(d, static_cast<float>(p.y[i]));
+  d = put(d, static_cast<float>(p.z[i]));
+  d = put(d, p.range_cal.empty() ? p.range[i] : p.range_cal[i]);
+  d = put(d, p.amplitude[i]);
+  d = put(d, static_cast<std::uint32_t>(p.index));
+  d = put(d, p.line[i]);
+  d = put(d, p.beam[i]);
+  return d;
+}
+}  // namespace
+
+ReturnsWriter::ReturnsWriter(const std::string& path) : path_(path) {}
+
+void ReturnsWriter::append(const Pass& pass) {
+  if (!writer_) {
+    // The first pass fixes the extra fields; later passes must carry the same ones.
+    for (const auto& e : pass.extra) extra_.push_back(e.field);
+    extra_source_ = pass.source;
+    auto fields = base_fields(true);
+    fields.insert(fields.end(), extra_.begin(), extra_.end());
+    writer_ = std::make_unique<PcdWriter>(path_, fields);
+  } else {
+    bool same = pass.extra.size() == extra_.size();
+    for (std::size_t k = 0; same && k < extra_.size(); ++k)
+      same = pass.extra[k].field.name == extra_[k].name && pass.extra[k].field.bytes() == extra_[k].bytes() &&
+             pass.extra[k].field.type == extra_[k].type;
+    if (!same)
+      throw InputError(pass.source + ": its extra fields differ from those of " + extra_source_ +
+                       " (all passes of a run must carry the same extra fields)");
+  }
+  const std::size_t n = pass.size();
+  const std::size_t pb = writer_->point_bytes();
+  std::vector<std::uint8_t> rows(n * pb);
+  for (std::size_t i = 0; i < n; ++i) {
+    std::uint8_t* d = rows.data() + i * pb;
+    d = put_common(d, pass, i);
+    d = put(d, static_cast<std::uint8_t>(pass.label[i]));
+    d = put(d, pass.stamp[i]);
+    for (const auto& e : pass.extra) {
+      const std::size_t b = e.field.bytes();
+      std::memcpy(d, e.data.data() + i * b, b);
+      d += b;
+    }
+  }
+  writer_->append(rows.data(), n);
+}
+
+void ReturnsWriter::close() {
+  if (!writer_) writer_ = std::make_unique<PcdWriter>(path_, base_fields(true));  // a run of empty passes
+  writer_->close();
+}
+
+CloudWriter::CloudWriter(const std::string& path) : writer_(path, base_fields(false)) {}
+
+void CloudWriter::append(const Pass& pass) {
+  const std::size_t pb = writer_.point_bytes();
+  std::vector<std::uint8_t> rows;
+  rows.reserve(pass.size() * pb);
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < pass.size(); ++i) {
+    if (!pass.is_kept(i)) continue;
+    rows.resize((n + 1) * pb);
+    std::uint8_t* d = rows.data() + n * pb;
+    d = put_common(d, pass, i);
+    put(d, pass.stamp[i]);
+    ++n;
+  }
+  writer_.append(rows.data(), n);
+}
+
+}  // namespace pcdp::io

@@ -1,0 +1,201 @@
+#include "pcdp/pipeline.hpp"
+
+#include <chrono>
+#include <nlohmann/json.hpp>
+
+#include "pcdp/errors.hpp"
+#include "pcdp/io/atomic_file.hpp"
+#include "pcdp/io/outputs.hpp"
+#include "pcdp/io/poses.hpp"
+#include "pcdp/pass.hpp"
+
+#ifndef PCDP_VERSION
+#define PCDP_VERSION "unknown"
+#endif
+
+namespace pcdp {
+
+namespace {
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+LabelHistogram histogram(const Pass& p) {
+  LabelHistogram h{};
+  for (Label l : p.label) ++h[static_cast<std::size_t>(l)];
+  return h;
+}
+}  // namespace
+
+Pipeline Pipeline::prepare(PipelineConfig config) {
+  Pipeline p;
+  p.config_ = std::make_shared<PipelineConfig>(std::move(config));
+  const PipelineConfig& cfg = *p.config_;
+  if (cfg.stages.empty()) throw ConfigError(cfg.source + ": the pipeline is empty: 'stages' lists no stage");
+  if (cfg.stages.front().type != "register")
+    throw ConfigError(cfg.stages.front().where + ": stage '" + cfg.stages.front().name + "' (" +
+                      cfg.stages.front().type +
+                      "): the first stage must be 'register' (every other stage works on registered returns)");
+  for (std::size_t i = 1; i < cfg.stages.size(); ++i)
+    if (cfg.stages[i].type == "register")
+      throw ConfigError(cfg.stages[i].where + ": stage '" + cfg.stages[i].name +
+                        "' (register): 'register' may appear only once, as the first stage");
+  p.context_.config = p.config_.get();
+  if (!cfg.poses.empty())
+    p.context_.poses = std::make_shared<const PoseTrack>(io::read_pose_csv(cfg.poses, cfg.rpy_order));
+  for (const auto& sc : cfg.stages) p.stages_.push_back(find_stage(sc.type)->create(sc, p.context_));
+  return p;
+}
+
+RunSummary Pipeline::run(const ProgressFn& progress) {
+  const auto t_run = std::chrono::steady_clock::now();
+  const PipelineConfig& cfg = *config_;
+  RunSummary sum;
+  sum.output_dir = cfg.output_dir;
+  for (const auto& sc : cfg.stages) {
+    StageReport r;
+    r.name = sc.name;
+    r.type = sc.type;
+    sum.stages.push_back(r);
+  }
+
+  io::StagedOutputs out(cfg.output_dir);
+  io::ReturnsWriter returns(out.staged_path("returns.pcd"));
+  io::CloudWriter cloud(out.staged_path("cloud.pcd"));
+  const std::string report_tmp = out.staged_path("report.json");
+
+  const std::size_t np = cfg.scans.size();
+  std::int64_t last_line = -1;
+  std::string last_file;
+  for (std::size_t k = 0; k < np; ++k) {
+    const auto emit = [&](const std::string& step) {
+      if (progress) progress({k, np, cfg.scans[k], step});
+    };
+    emit("read");
+    Pass pass = read_pass(cfg.scans[k], k);
+    if (pass.size() > 0) {
+      if (static_cast<std::int64_t>(pass.line.front()) <= last_line)
+        throw InputError(pass.source + ": field 'line': its first line " + std::to_string(pass.line.front()) +
+                         " is not after the last line " + std::to_string(last_line) + " of " + last_file +
+                         " (line indices are unique within a run and increase with time)");
+      last_line = pass.line.back();
+      last_file = pass.source;
+    }
+    for (std::size_t s = 0; s < stages_.size(); ++s) {
+      emit(cfg.stages[s].name);
+      StageReport& rep = sum.stages[s];
+      const LabelHistogram before = histogram(pass);
+      const auto t0 = std::chrono::steady_clock::now();
+      stages_[s]->process(pass, rep);
+      rep.seconds += seconds_since(t0);
+      const LabelHistogram after = histogram(pass);
+      rep.in += before[0];
+      rep.out += after[0];
+      for (std::size_t l = 1; l < kLabelCount; ++l)
+        if (after[l] > before[l]) rep.rejected[l] += after[l] - before[l];
+    }
+    emit("write");
+    returns.append(pass);
+    cloud.append(pass);
+    const LabelHistogram h = histogram(pass);
+    for (std::size_t l = 0; l < kLabelCount; ++l) sum.labels[l] += h[l];
+    sum.input_returns += pass.size();
+    sum.passes.push_back({pass.source, pass.size(), pass.line_count(), h[0]});
+  }
+  for (std::size_t s = 0; s < stages_.size(); ++s) {
+    const auto t0 = std::chrono::steady_clock::now();
+    stages_[s]->finish(out, sum.stages[s]);
+    sum.stages[s].seconds += seconds_since(t0);
+  }
+  returns.close();
+  cloud.close();
+  if (returns.points() != sum.input_returns)
+    throw std::logic_error("returns.pcd holds " + std::to_string(returns.points()) + " returns, input had " +
+                           std::to_string(sum.input_returns));
+  for (const auto& r : sum.stages)
+    for (const auto& w : r.warnings) sum.warnings.push_back(r.name + ": " + w);
+  sum.outputs = {out.final_path("returns.pcd"), out.final_path("cloud.pcd"), out.final_path("report.json")};
+  sum.seconds = seconds_since(t_run);
+  {
+    std::FILE* f = std::fopen(report_tmp.c_str(), "wb");
+    const std::string js = report_json(cfg, sum);
+    if (!f || std::fwrite(js.data(), 1, js.size(), f) != js.size() || std::fclose(f) != 0)
+      throw std::runtime_error(report_tmp + ": cannot write the report");
+  }
+  out.commit();
+  return sum;
+}
+
+namespace {
+nlohmann::json values_json(const OptionValues& v) {
+  nlohmann::json j = nlohmann::json::object();
+  for (const auto& [name, val] : v.all()) {
+    nlohmann::json x;
+    if (std::holds_alternative<bool>(val)) x = std::get<bool>(val);
+    else if (std::holds_alternative<std::int64_t>(val)) x = std::get<std::int64_t>(val);
+    else if (std::holds_alternative<double>(val)) x = std::get<double>(val);
+    else x = std::get<std::string>(val);
+    // Dotted keys become nested objects again, as the user wrote them.
+    nlohmann::json* cur = &j;
+    std::string key = name;
+    for (auto dot = key.find('.'); dot != std::string::npos; dot = key.find('.')) {
+      cur = &(*cur)[key.substr(0, dot)];
+      key = key.substr(dot + 1);
+    }
+    (*cur)[key] = x;
+  }
+  return j;
+}
+
+nlohmann::json labels_json(const LabelHistogram& h) {
+  nlohmann::json j = nlohmann::json::object();
+  for (std::size_t l = 0; l < kLabelCount; ++l) j[label_name(static_cast<Label>(l))] = h[l];
+  return j;
+}
+}  // namespace
+
+std::string report_json(const PipelineConfig& cfg, const RunSummary& sum) {
+  nlohmann::json j;
+  j["pcd_pipeline"] = {{"version", PCDP_VERSION},
+                       {"eigen", std::to_string(EIGEN_WORLD_VERSION) + "." + std::to_string(EIGEN_MAJOR_VERSION) +
+                                     "." + std::to_string(EIGEN_MINOR_VERSION)}};
+  nlohmann::json c;
+  c["pipeline_file"] = cfg.source;
+  c["rpy_order"] = rpy_order_name(cfg.rpy_order);
+  c["input"] = {{"scans", cfg.scans}, {"poses", cfg.poses}};
+  c["output_dir"] = cfg.output_dir;
+  for (const auto& [name, vals] : cfg.blocks) c[name] = values_json(vals);
+  c["stages"] = nlohmann::json::array();
+  for (const auto& sc : cfg.stages) {
+    nlohmann::json s = values_json(sc.options);
+    s["type"] = sc.type;
+    s["name"] = sc.name;
+    c["stages"].push_back(s);
+  }
+  j["config"] = c;
+  j["input_returns"] = sum.input_returns;
+  j["kept"] = sum.labels[0];
+  j["labels"] = labels_json(sum.labels);
+  j["passes"] = nlohmann::json::array();
+  for (const auto& p : sum.passes)
+    j["passes"].push_back({{"file", p.file}, {"returns", p.returns}, {"lines", p.lines}, {"kept", p.kept}});
+  j["stages"] = nlohmann::json::array();
+  for (const auto& r : sum.stages) {
+    nlohmann::json rejected = nlohmann::json::object();
+    for (std::size_t l = 1; l < kLabelCount; ++l)
+      if (r.rejected[l]) rejected[label_name(static_cast<Label>(l))] = r.rejected[l];
+    j["stages"].push_back({{"name", r.name},
+                           {"type", r.type},
+                           {"in", r.in},
+                           {"out", r.out},
+                           {"rejected", rejected},
+                           {"seconds", r.seconds},
+                           {"metrics", r.metrics},
+                           {"warnings", r.warnings}});
+  }
+  j["warnings"] = sum.warnings;
+  j["seconds"] = sum.seconds;
+  return j.dump(2) + "\n";
+}
+
+}  // namespace pcdp

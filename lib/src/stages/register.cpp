@@ -1,0 +1,112 @@
+#include "pcdp/stages/register.hpp"
+
+#include <cmath>
+#include <limits>
+
+#include "pcdp/pass.hpp"
+#include "pcdp/skew.hpp"
+
+namespace pcdp {
+
+const OptionSchema& register_schema() {
+  static const OptionSchema s = {
+      opt_bool("skew_correction", true,
+               "give each return the nod angle at its own stamp, interpolated from the per-line encoder readings"),
+      opt_double("max_pose_gap", 1.0, 0.0, std::nullopt, "s",
+                 "returns inside a pose-file gap longer than this get no_pose (0: never)"),
+  };
+  return s;
+}
+
+void register_pass(Pass& pass, const RegisterParams& params, const SensorParams& sensor,
+                   const Eigen::Isometry3d& T_V_N, const PoseTrack* poses) {
+  const std::size_t n = pass.size();
+  constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  pass.range_cal.assign(n, std::numeric_limits<float>::quiet_NaN());
+  pass.nod_at_return.assign(n, 0.0f);
+  pass.x.assign(n, kNaN);
+  pass.y.assign(n, kNaN);
+  pass.z.assign(n, kNaN);
+  pass.ox.assign(n, kNaN);
+  pass.oy.assign(n, kNaN);
+  pass.oz.assign(n, kNaN);
+
+  const EncoderTrack track = encoder_track(pass, sensor.encoder_latency);
+  std::size_t enc_hint = 0, pose_hint = 0;
+  const Eigen::Isometry3d identity = Eigen::Isometry3d::Identity();
+
+  for (std::size_t i = 0; i < n; ++i) {
+    const double stamp = pass.stamp[i];
+    const double eta = params.skew_correction ? track.angle_at(stamp, enc_hint) : static_cast<double>(pass.nod[i]);
+    pass.nod_at_return[i] = static_cast<float>(eta);
+
+    const float r = pass.range[i];
+    const bool has_return = r > 0.0f;  // false for 0 and NaN
+    double rc = kNaN;
+    if (has_return) {
+      rc = sensor.calibrated_range(r);
+      pass.range_cal[i] = static_cast<float>(rc);
+    }
+
+    bool has_pose = true;
+    Eigen::Isometry3d T_M_V = identity;
+    if (poses) {
+      has_pose = poses->covers(stamp) &&
+                 (params.max_pose_gap <= 0.0 || poses->gap_at(stamp, pose_hint) <= params.max_pose_gap);
+      if (has_pose) T_M_V = poses->at(stamp, pose_hint);
+    }
+
+    if (!has_return) {
+      pass.label[i] = Label::kNoReturn;
+    } else if (!(rc >= sensor.range_min && rc <= sensor.range_max)) {
+      pass.label[i] = Label::kOutOfRange;
+    } else if (!has_pose) {
+      pass.label[i] = Label::kNoPose;
+    }
+    if (!has_pose) continue;
+
+    const Eigen::Isometry3d T_M_N = T_M_V * T_V_N;
+    const Eigen::Vector3d o = T_M_N.translation();
+    pass.ox[i] = o.x();
+    pass.oy[i] = o.y();
+    pass.oz[i] = o.z();
+    if (!has_return) continue;
+    const Eigen::Vector3d p = T_M_N * nod_frame_point(rc, pass.bearing[i], eta);
+    pass.x[i] = p.x();
+    pass.y[i] = p.y();
+    pass.z[i] = p.z();
+  }
+}
+
+namespace {
+class RegisterStage final : public Stage {
+ public:
+  RegisterStage(RegisterParams p, const RunContext& ctx) : params_(p), ctx_(ctx) {
+    const PipelineConfig& cfg = *ctx.config;
+    T_V_N_ = make_transform(cfg.mount.translation, cfg.mount.rpy, cfg.rpy_order);
+  }
+  void process(Pass& pass, StageReport& report) override {
+    register_pass(pass, params_, ctx_.config->sensor, T_V_N_, ctx_.poses.get());
+    report.metrics["lines"] += static_cast<double>(pass.line_count());
+  }
+
+ private:
+  RegisterParams params_;
+  RunContext ctx_;
+  Eigen::Isometry3d T_V_N_;
+};
+}  // namespace
+
+StageInfo register_stage_info() {
+  return {"register",
+          "raw returns -> map frame: range calibration, skew correction, mount and pose transforms",
+          register_schema(),
+          [](const StageConfig& sc, const RunContext& ctx) -> std::unique_ptr<Stage> {
+            RegisterParams p;
+            p.skew_correction = sc.options.get_bool("skew_correction");
+            p.max_pose_gap = sc.options.get_double("max_pose_gap");
+            return std::make_unique<RegisterStage>(p, ctx);
+          }};
+}
+
+}  // namespace pcdp

@@ -1,0 +1,22 @@
+// The CLI's commands. Each returns an exit code; errors propagate as exceptions and are mapped to
+// exit codes in main.cpp (0 ok, 1 internal, 2 configuration, 3 input data).
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace pcdp::cli {
+
+struct RunArgs {
+  std::string pipeline;
+  std::vector<std::string> sets;
+  std::string output_dir;
+  bool quiet = false;
+};
+
+int cmd_run(const RunArgs& a);
+int cmd_validate(const RunArgs& a);
+int cmd_stages();
+int cmd_describe(const std::string& what);
+
+}  // namespace pcdp::cli

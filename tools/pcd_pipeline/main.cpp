@@ -1,0 +1,54 @@
+// pcd_pipeline: the command-line edge. Parses arguments, calls a command, maps errors to exit codes
+// (0 ok, 1 internal error, 2 invalid configuration, 3 input data error).
+#include <CLI/CLI.hpp>
+#include <iostream>
+
+#include "commands.hpp"
+#include "pcdp/errors.hpp"
+
+int main(int argc, char** argv) {
+  using namespace pcdp;
+  CLI::App app{"pcd_pipeline: nodding-laser scans to clean, registered point clouds and terrain maps"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", std::string("pcd_pipeline ") + PCDP_VERSION_STRING);
+
+  cli::RunArgs run_args;
+  auto add_run_options = [&](CLI::App* c) {
+    c->add_option("pipeline", run_args.pipeline, "pipeline YAML file")->required();
+    c->add_option("--set", run_args.sets, "override a key: --set sensor.min_amplitude=20 (repeatable)");
+    c->add_option("--output-dir", run_args.output_dir, "output folder (wins over output_dir in the file)");
+    c->add_flag("-q,--quiet", run_args.quiet, "print nothing but errors");
+  };
+  CLI::App* run = app.add_subcommand("run", "run a pipeline: read passes, run the stages, write the outputs");
+  add_run_options(run);
+  CLI::App* validate = app.add_subcommand("validate", "load and check a pipeline; reads no scan");
+  add_run_options(validate);
+  CLI::App* stages = app.add_subcommand("stages", "list the built-in stages");
+  std::string describe_what;
+  CLI::App* describe = app.add_subcommand("describe", "print the option schema of a stage (or of sensor, mount, pose_sigma)");
+  describe->add_option("stage", describe_what, "stage type or block name")->required();
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int rc = app.exit(e);
+    return rc == 0 ? 0 : static_cast<int>(ExitCode::kConfig);
+  }
+
+  try {
+    if (*run) return cli::cmd_run(run_args);
+    if (*validate) return cli::cmd_validate(run_args);
+    if (*stages) return cli::cmd_stages();
+    if (*describe) return cli::cmd_describe(describe_what);
+  } catch (const ConfigError& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return static_cast<int>(ExitCode::kConfig);
+  } catch (const InputError& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return static_cast<int>(ExitCode::kInput);
+  } catch (const std::exception& e) {
+    std::cerr << "internal error: " << e.what() << "\n";
+    return static_cast<int>(ExitCode::kInternal);
+  }
+  return static_cast<int>(ExitCode::kInternal);
+}
