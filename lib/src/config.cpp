@@ -178,7 +178,7 @@ OptionValues validate_block(const Context& ctx, const YAML::Node& block, const O
     flatten(ctx, "", key_prefix, block, flat);
     for (const auto& [key, node] : flat) {
       if (skip.count(key)) continue;
-      const std::string full = key_prefix + "." + key;
+      const std::string full = key_prefix.empty() ? key : key_prefix + "." + key;
       auto it = std::find_if(schema.begin(), schema.end(), [&](const OptionSpec& s) { return s.name == key; });
       if (it == schema.end())
         fail(ctx.where(full, node), what + ": unknown option '" + key + "'" + did_you_mean(key, names) +
@@ -452,6 +452,16 @@ PipelineConfig build(YAML::Node root, Context& ctx, const LoadOptions& opts) {
 }
 
 }  // namespace
+
+namespace detail {
+OptionValues validate_yaml_block(const std::string& source, const YAML::Node& block, const OptionSchema& schema,
+                                 const std::string& what, const std::string& key_prefix) {
+  const Context ctx(source, ".");
+  return validate_block(ctx, block, schema, what, key_prefix);
+}
+YAML::Node parse_yaml(const std::string& text, const std::string& source) { return load_yaml(text, source); }
+std::string where(const std::string& source, const YAML::Node& n) { return Context(source, ".").where("", n); }
+}  // namespace detail
 
 PipelineConfig load_pipeline_from_string(const std::string& yaml, const std::string& source_name,
                                          const std::string& base_dir, const LoadOptions& opts) {

@@ -8,6 +8,7 @@
 #include "pcdp/config.hpp"
 #include "pcdp/errors.hpp"
 #include "pcdp/pipeline.hpp"
+#include "pcdp/sim/nodding_sim.hpp"
 #include "pcdp/stage.hpp"
 
 namespace pcdp::cli {
@@ -69,20 +70,40 @@ int cmd_stages() {
   return 0;
 }
 
-int cmd_describe(const std::string& what) {
-  if (what == "sensor" || what == "mount" || what == "pose_sigma") {
-    const OptionSchema& sch = what == "sensor" ? sensor_schema() : what == "mount" ? mount_schema() : pose_sigma_schema();
-    std::cout << what << " block\n\n" << describe_schema(sch);
-    return 0;
+int cmd_simulate(const std::string& scene, const std::string& output_dir, bool quiet) {
+  const sim::SimConfig cfg = load_scene(scene);
+  const sim::SimResult r = sim::simulate(cfg);
+  const auto files = sim::write_run(r, cfg, output_dir);
+  sim::write_truth(r, output_dir);
+  if (!quiet) {
+    std::size_t n = 0, returns = 0;
+    for (const auto& p : r.passes) {
+      n += p.pass.size();
+      for (float v : p.pass.range) returns += v > 0.0f;
+    }
+    std::cout << "simulated " << files.size() << " pass(es), " << n << " returns (" << returns << " with a range), "
+              << r.poses.size() << " poses -> " << output_dir << " (pass_*.pcd, poses.csv, truth/)\n";
   }
+  return 0;
+}
+
+int cmd_describe(const std::string& what) {
+  const std::vector<std::pair<std::string, const OptionSchema*>> blocks = {
+      {"sensor", &sensor_schema()},   {"mount", &mount_schema()},   {"pose_sigma", &pose_sigma_schema()},
+      {"scanner", &scanner_schema()}, {"motion", &motion_schema()}, {"terrain", &terrain_schema()}};
+  for (const auto& [name, sch] : blocks)
+    if (what == name) {
+      std::cout << what << " block\n\n" << describe_schema(*sch);
+      return 0;
+    }
   const StageInfo* info = find_stage(what);
   if (!info) {
     auto names = stage_type_names();
     std::string list;
     for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
-    names.insert(names.end(), {"sensor", "mount", "pose_sigma"});
+    for (const auto& b : blocks) names.push_back(b.first);
     throw ConfigError("describe: unknown stage '" + what + "'" + did_you_mean(what, names) + "; stages: " + list +
-                      "; blocks: sensor, mount, pose_sigma");
+                      "; blocks: sensor, mount, pose_sigma (pipelines), scanner, motion, terrain (scenes)");
   }
   std::cout << info->type << ": " << info->summary << "\n\n" << describe_schema(info->schema);
   return 0;

@@ -28,6 +28,13 @@ int main(int argc, char** argv) {
   CLI::App* describe = app.add_subcommand("describe", "print the option schema of a stage (or of sensor, mount, pose_sigma)");
   describe->add_option("stage", describe_what, "stage type or block name")->required();
 
+  std::string scene, sim_out;
+  bool sim_quiet = false;
+  CLI::App* simulate = app.add_subcommand("simulate", "simulate a nodding scanner in a scene: passes, poses and ground truth");
+  simulate->add_option("scene", scene, "scene YAML file")->required();
+  simulate->add_option("--output-dir", sim_out, "output folder")->required();
+  simulate->add_flag("-q,--quiet", sim_quiet, "print nothing but errors");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -40,6 +47,7 @@ int main(int argc, char** argv) {
     if (*validate) return cli::cmd_validate(run_args);
     if (*stages) return cli::cmd_stages();
     if (*describe) return cli::cmd_describe(describe_what);
+    if (*simulate) return cli::cmd_simulate(scene, sim_out, sim_quiet);
   } catch (const ConfigError& e) {
     std::cerr << "error: " << e.what() << "\n";
     return static_cast<int>(ExitCode::kConfig);

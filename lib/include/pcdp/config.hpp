@@ -97,3 +97,20 @@ PipelineConfig load_pipeline_from_string(const std::string& yaml, const std::str
                                          const std::string& base_dir, const LoadOptions& opts = {});
 
 }  // namespace pcdp
+
+namespace pcdp::sim {
+struct SimConfig;
+}
+
+namespace pcdp {
+
+/// Schemas of the simulator's scene blocks (`scanner`, `motion`, `terrain`), for describe/docs.
+const OptionSchema& scanner_schema();
+const OptionSchema& motion_schema();
+const OptionSchema& terrain_schema();
+
+/// Loads and validates a scene YAML for `pcd_pipeline simulate` (same strict rules as pipelines).
+sim::SimConfig load_scene(const std::string& path);
+sim::SimConfig load_scene_from_string(const std::string& yaml, const std::string& source_name);
+
+}  // namespace pcdp

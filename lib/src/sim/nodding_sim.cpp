@@ -233,6 +233,42 @@ void write_pose_csv(const std::vector<PoseSample>& poses, RpyOrder order, const 
   io::write_file_atomic(path, os.str());
 }
 
+void write_truth(const SimResult& r, const std::string& dir) {
+  const std::filesystem::path tdir = std::filesystem::path(dir) / "truth";
+  std::filesystem::create_directories(tdir);
+  const std::vector<io::PcdField> fields = {{"line", 'U', 4, 1}, {"beam", 'U', 4, 1}, {"x", 'F', 8, 1},
+                                            {"y", 'F', 8, 1},    {"z", 'F', 8, 1},    {"nod", 'F', 4, 1},
+                                            {"label", 'U', 1, 1}};
+  for (std::size_t k = 0; k < r.passes.size(); ++k) {
+    char name[32];
+    std::snprintf(name, sizeof name, "pass_%03zu.pcd", k);
+    const std::string path = (tdir / name).string();
+    const SimPass& sp = r.passes[k];
+    {
+      io::PcdWriter w(path + ".tmp", fields);
+      std::vector<std::uint8_t> row(w.point_bytes());
+      for (std::size_t i = 0; i < sp.pass.size(); ++i) {
+        std::uint8_t* d = row.data();
+        const auto put = [&](const void* v, std::size_t n) {
+          std::memcpy(d, v, n);
+          d += n;
+        };
+        const std::uint8_t label = std::isnan(sp.true_point[i].x()) ? 1 : 0;
+        put(&sp.pass.line[i], 4);
+        put(&sp.pass.beam[i], 4);
+        put(&sp.true_point[i].x(), 8);
+        put(&sp.true_point[i].y(), 8);
+        put(&sp.true_point[i].z(), 8);
+        put(&sp.true_nod[i], 4);
+        put(&label, 1);
+        w.append(row.data(), 1);
+      }
+      w.close(sp.pass.line_count());
+    }
+    std::filesystem::rename(path + ".tmp", path);
+  }
+}
+
 std::vector<std::string> write_run(const SimResult& r, const SimConfig& cfg, const std::string& dir) {
   std::filesystem::create_directories(dir);
   std::vector<std::string> files;

@@ -91,6 +91,11 @@ SimResult simulate(const SimConfig& cfg);
 /// Returns the pass file paths.
 std::vector<std::string> write_run(const SimResult& r, const SimConfig& cfg, const std::string& dir);
 
+/// Writes the ground truth of every pass as `dir/truth/pass_%03d.pcd`: line beam x y z (true map
+/// point, NaN without a return) nod (true nod at the return's stamp) label (truth label code:
+/// 0 valid, 1 no return).
+void write_truth(const SimResult& r, const std::string& dir);
+
 /// Writes one raw pass as a PCD in the DESIGN.md contract (organized when every line has the
 /// same number of returns). `data` is "binary" or "ascii".
 void write_pass_pcd(const Pass& pass, const std::string& path);

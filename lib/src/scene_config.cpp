@@ -1,0 +1,182 @@
+// Scene YAML for the simulator. Uses the same strict block validation as pipelines (config.cpp's
+// helpers are not shared by linkage to keep config.cpp the pipeline's; the rules are the schema).
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include "pcdp/config.hpp"
+#include "pcdp/errors.hpp"
+#include "pcdp/sim/nodding_sim.hpp"
+
+namespace pcdp {
+
+namespace detail {
+// Defined in config.cpp.
+OptionValues validate_yaml_block(const std::string& source, const YAML::Node& block, const OptionSchema& schema,
+                                 const std::string& what, const std::string& key_prefix);
+YAML::Node parse_yaml(const std::string& text, const std::string& source);
+std::string where(const std::string& source, const YAML::Node& n);
+}  // namespace detail
+
+const OptionSchema& scanner_schema() {
+  static const OptionSchema s = {
+      opt_int("beams", 181, 1.0, 10000.0, "", "returns per scan line"),
+      opt_double("bearing_min", -1.5707963, -3.15, 3.15, "rad", "bearing of the first beam"),
+      opt_double("bearing_max", 1.5707963, -3.15, 3.15, "rad", "bearing of the last beam"),
+      opt_double("line_period", 0.0133, 1e-4, 10.0, "s", "time of one sweep (SICK LMS 200: 13.3 ms)"),
+      opt_double("nod_min", -0.5, -1.57, 1.57, "rad", "lowest nod angle"),
+      opt_double("nod_max", 0.1, -1.57, 1.57, "rad", "highest nod angle"),
+      opt_double("nod_rate", 0.5, 0.0, 10.0, "rad/s", "constant nod rate (triangle profile)"),
+      opt_double("encoder_resolution", 0.0012566, 0.0, 0.1, "rad", "encoder readings are quantized to this"),
+      opt_double("range_max", 30.0, 0.1, 1000.0, "m", "no return beyond this range"),
+      opt_double("range_sigma", 0.0053, 0.0, 1.0, "m", "1-sigma Gaussian range noise"),
+      opt_double("amplitude_scale", 2000.0, 0.0, 1e6, "", "amplitude = scale * reflectivity * cos(incidence) / range"),
+  };
+  return s;
+}
+
+const OptionSchema& motion_schema() {
+  static const OptionSchema s = {
+      opt_double("start.x", 0.0, -1e6, 1e6, "m", "vehicle position at t0, x"),
+      opt_double("start.y", 0.0, -1e6, 1e6, "m", "vehicle position at t0, y"),
+      opt_double("start.z", 0.0, -1e4, 1e4, "m", "vehicle position at t0, z"),
+      opt_double("speed", 1.0, 0.0, 100.0, "m/s", "forward speed"),
+      opt_double("yaw", 0.0, -3.15, 3.15, "rad", "initial heading"),
+      opt_double("yaw_rate", 0.0, -2.0, 2.0, "rad/s", "turn rate"),
+      opt_double("roll_amplitude", 0.0, 0.0, 0.5, "rad", "sinusoidal roll sway"),
+      opt_double("pitch_amplitude", 0.0, 0.0, 0.5, "rad", "sinusoidal pitch sway"),
+      opt_double("sway_frequency", 0.5, 0.0, 50.0, "Hz", "frequency of the sway"),
+      opt_double("pose_rate", 100.0, 1.0, 10000.0, "Hz", "rate of the written pose file"),
+  };
+  return s;
+}
+
+const OptionSchema& terrain_schema() {
+  static const OptionSchema s = {
+      opt_double("ground_z", 0.0, -1e4, 1e4, "m", "mean ground height"),
+      opt_double("undulation_amplitude", 0.0, 0.0, 100.0, "m", "z = ground_z + a sin(2 pi x / L) cos(2 pi y / L)"),
+      opt_double("undulation_wavelength", 10.0, 0.1, 1e4, "m", "L of the undulation"),
+      opt_double("reflectivity", 0.4, 0.0, 1.0, "", "ground reflectivity"),
+  };
+  return s;
+}
+
+namespace {
+Eigen::Vector3d vec3(const std::string& src, const YAML::Node& n, const std::string& what) {
+  if (!n || !n.IsSequence() || n.size() != 3)
+    throw ConfigError(detail::where(src, n) + ": " + what + " must be a list of 3 numbers [x, y, z]");
+  Eigen::Vector3d v;
+  for (std::size_t i = 0; i < 3; ++i) {
+    char* end = nullptr;
+    const std::string t = n[i].IsScalar() ? n[i].Scalar() : "";
+    v[static_cast<int>(i)] = std::strtod(t.c_str(), &end);
+    if (t.empty() || *end != '\0' || !std::isfinite(v[static_cast<int>(i)]))
+      throw ConfigError(detail::where(src, n) + ": " + what + ": '" + t + "' is not a finite number");
+  }
+  return v;
+}
+}  // namespace
+
+sim::SimConfig load_scene_from_string(const std::string& yaml, const std::string& src) {
+  const YAML::Node root = detail::parse_yaml(yaml, src);
+  if (!root.IsMap()) throw ConfigError(src + ": a scene must be a mapping of keys");
+  const std::vector<std::string> keys = {"description", "seed", "rpy_order", "passes", "lines_per_pass", "t0",
+                                         "mount", "scanner", "motion", "terrain", "boxes"};
+  for (const auto& kv : root) {
+    const std::string k = kv.first.Scalar();
+    if (std::find(keys.begin(), keys.end(), k) == keys.end())
+      throw ConfigError(detail::where(src, kv.first) + ": unknown key '" + k + "'" + did_you_mean(k, keys));
+  }
+  static const OptionSchema run_schema = {
+      opt_int("seed", 1, 0.0, 4e18, "", "random seed (the output is bit-identical for a given seed)"),
+      opt_enum("rpy_order", "xyz", {"xyz", "zyx"}, "roll-pitch-yaw order of the mount and the written poses"),
+      opt_int("passes", 1, 1.0, 10000.0, "", "number of pass files"),
+      opt_int("lines_per_pass", 100, 1.0, 1e6, "", "scan lines per pass"),
+      opt_double("t0", 0.0, -1e12, 1e12, "s", "stamp of the first return"),
+  };
+  YAML::Node top(YAML::NodeType::Map);
+  for (const auto& o : run_schema)
+    if (root[o.name]) top[o.name] = root[o.name];
+  const OptionValues run = detail::validate_yaml_block(src, top, run_schema, "scene", "");
+  const OptionValues mount = detail::validate_yaml_block(src, root["mount"], mount_schema(), "mount", "mount");
+  const OptionValues sc = detail::validate_yaml_block(src, root["scanner"], scanner_schema(), "scanner", "scanner");
+  const OptionValues mo = detail::validate_yaml_block(src, root["motion"], motion_schema(), "motion", "motion");
+  const OptionValues te = detail::validate_yaml_block(src, root["terrain"], terrain_schema(), "terrain", "terrain");
+
+  sim::SimConfig c;
+  c.seed = static_cast<std::uint64_t>(run.get_int("seed"));
+  c.rpy_order = rpy_order_from_name(run.get_string("rpy_order"));
+  c.passes = static_cast<int>(run.get_int("passes"));
+  c.lines_per_pass = static_cast<int>(run.get_int("lines_per_pass"));
+  c.t0 = run.get_double("t0");
+  c.mount_translation = {mount.get_double("x"), mount.get_double("y"), mount.get_double("z")};
+  c.mount_rpy = {mount.get_double("roll"), mount.get_double("pitch"), mount.get_double("yaw")};
+  auto& s = c.scanner;
+  s.beams = static_cast<int>(sc.get_int("beams"));
+  s.bearing_min = sc.get_double("bearing_min");
+  s.bearing_max = sc.get_double("bearing_max");
+  s.line_period = sc.get_double("line_period");
+  s.nod_min = sc.get_double("nod_min");
+  s.nod_max = sc.get_double("nod_max");
+  s.nod_rate = sc.get_double("nod_rate");
+  s.encoder_resolution = sc.get_double("encoder_resolution");
+  s.range_max = sc.get_double("range_max");
+  s.range_sigma = sc.get_double("range_sigma");
+  s.amplitude_scale = sc.get_double("amplitude_scale");
+  if (s.nod_min >= s.nod_max)
+    throw ConfigError(src + ": scanner: nod_min (" + format_value(s.nod_min) + ") must be less than nod_max (" +
+                      format_value(s.nod_max) + ")");
+  auto& m = c.motion;
+  m.start = {mo.get_double("start.x"), mo.get_double("start.y"), mo.get_double("start.z")};
+  m.speed = mo.get_double("speed");
+  m.yaw = mo.get_double("yaw");
+  m.yaw_rate = mo.get_double("yaw_rate");
+  m.roll_amplitude = mo.get_double("roll_amplitude");
+  m.pitch_amplitude = mo.get_double("pitch_amplitude");
+  m.sway_frequency = mo.get_double("sway_frequency");
+  m.pose_rate = mo.get_double("pose_rate");
+  c.scene.ground_z = te.get_double("ground_z");
+  c.scene.undulation_amplitude = te.get_double("undulation_amplitude");
+  c.scene.undulation_wavelength = te.get_double("undulation_wavelength");
+  c.scene.ground_reflectivity = te.get_double("reflectivity");
+  if (root["boxes"]) {
+    if (!root["boxes"].IsSequence()) throw ConfigError(detail::where(src, root["boxes"]) + ": 'boxes' must be a list");
+    for (const auto& b : root["boxes"]) {
+      if (!b.IsMap()) throw ConfigError(detail::where(src, b) + ": each box is a mapping {min, max, reflectivity}");
+      for (const auto& kv : b) {
+        const std::string k = kv.first.Scalar();
+        if (k != "min" && k != "max" && k != "reflectivity" && k != "name")
+          throw ConfigError(detail::where(src, kv.first) + ": box: unknown key '" + k + "'" +
+                            did_you_mean(k, {"min", "max", "reflectivity", "name"}));
+      }
+      sim::Box box;
+      box.min = vec3(src, b["min"], "box min");
+      box.max = vec3(src, b["max"], "box max");
+      if ((box.max - box.min).minCoeff() <= 0.0)
+        throw ConfigError(detail::where(src, b) + ": box: max must exceed min on every axis");
+      if (b["reflectivity"]) {
+        const std::string t = b["reflectivity"].Scalar();
+        char* end = nullptr;
+        box.reflectivity = std::strtod(t.c_str(), &end);
+        if (*end != '\0' || !(box.reflectivity >= 0.0 && box.reflectivity <= 1.0))
+          throw ConfigError(detail::where(src, b["reflectivity"]) + ": box: reflectivity '" + t + "' must be in [0, 1]");
+      }
+      c.scene.boxes.push_back(box);
+    }
+  }
+  return c;
+}
+
+sim::SimConfig load_scene(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw ConfigError(path + ": cannot read the scene file (" + std::strerror(errno) + ")");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return load_scene_from_string(ss.str(), path);
+}
+
+}  // namespace pcdp

@@ -1,0 +1,322 @@
+// End-to-end tests through the real pcd_pipeline binary.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <regex>
+#include <set>
+#include <tuple>
+
+#include "pcdp/io/pcd.hpp"
+#include "pcdp_test_paths.hpp"
+#include "test_support.hpp"
+
+namespace fs = std::filesystem;
+using namespace pcdp;
+using test::run_cli;
+
+namespace {
+
+struct SimRun {
+  sim::SimConfig cfg;
+  sim::SimResult result;
+  std::string dir, yaml, out;
+  std::vector<std::string> files;
+};
+
+SimRun make_run(const std::string& tag = "data") {
+  SimRun r;
+  r.cfg = test::small_sim_config();
+  r.dir = test::fresh_dir(tag);
+  r.out = r.dir + "/out";
+  r.result = sim::simulate(r.cfg);
+  r.files = sim::write_run(r.result, r.cfg, r.dir);
+  r.yaml = r.dir + "/pipeline.yaml";
+  test::write_text(r.yaml, test::pipeline_yaml(r.cfg, r.dir, r.out));
+  return r;
+}
+
+double median_error(const io::PcdTable& t, const SimRun& r) {
+  const auto x = test::column(t, "x"), y = test::column(t, "y"), z = test::column(t, "z");
+  const auto label = test::column(t, "label"), pass = test::column(t, "pass"), line = test::column(t, "line"),
+             beam = test::column(t, "beam");
+  std::vector<double> err;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    if (label[i] != 0) continue;
+    const auto& sp = r.result.passes[static_cast<std::size_t>(pass[i])];
+    const std::size_t first_line = sp.pass.line.front();
+    const std::size_t k = (static_cast<std::size_t>(line[i]) - first_line) * static_cast<std::size_t>(r.cfg.scanner.beams) +
+                          static_cast<std::size_t>(beam[i]);
+    err.push_back((Eigen::Vector3d(x[i], y[i], z[i]) - sp.true_point[k]).norm());
+  }
+  EXPECT_GT(err.size(), x.size() / 2);
+  return test::median(err);
+}
+
+bool no_outputs_in(const std::string& dir) {
+  if (!fs::exists(dir)) return true;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    (void)e;
+    return false;  // nothing at all: neither final nor temporary files
+  }
+  return true;
+}
+
+}  // namespace
+
+TEST(Cli, RegistersASyntheticRunToTheTruthAndSkewCorrectionMatters) {
+  const SimRun r = make_run();
+  const auto res = run_cli({"run", r.yaml, "--quiet"});
+  ASSERT_EQ(res.exit_code, 0) << res.err;
+  EXPECT_TRUE(res.out.empty()) << "--quiet prints nothing: " << res.out;
+  const io::PcdTable t = io::read_pcd(r.out + "/returns.pcd");
+
+  // Every input return exactly once.
+  std::size_t input = 0;
+  for (const auto& p : r.result.passes) input += p.pass.size();
+  ASSERT_EQ(t.header.points, input);
+  std::set<std::tuple<int, int, int>> keys;
+  const auto pass = test::column(t, "pass"), line = test::column(t, "line"), beam = test::column(t, "beam");
+  for (std::size_t i = 0; i < pass.size(); ++i)
+    keys.insert({static_cast<int>(pass[i]), static_cast<int>(line[i]), static_cast<int>(beam[i])});
+  EXPECT_EQ(keys.size(), input);
+
+  const double with_skew = median_error(t, r);
+  EXPECT_LT(with_skew, 0.002);
+
+  const auto res2 = run_cli({"run", r.yaml, "--quiet", "--set", "stages.register.skew_correction=false",
+                             "--output-dir", r.dir + "/out_noskew"});
+  ASSERT_EQ(res2.exit_code, 0) << res2.err;
+  const double without = median_error(io::read_pcd(r.dir + "/out_noskew/returns.pcd"), r);
+  EXPECT_GT(without, 5 * with_skew);
+  EXPECT_GT(without, 0.01);
+  std::cout << "median registration error: skew correction on " << with_skew * 1000 << " mm, off "
+            << without * 1000 << " mm\n";
+
+  // The report: effective configuration after overrides, label histogram summing to the input.
+  const auto rep = nlohmann::json::parse(test::read_text(r.dir + "/out_noskew/report.json"));
+  EXPECT_EQ(rep["config"]["stages"][0]["skew_correction"], false);
+  std::uint64_t sum = 0;
+  for (const auto& [k, v] : rep["labels"].items()) sum += v.get<std::uint64_t>();
+  EXPECT_EQ(sum, input);
+  EXPECT_EQ(rep["input_returns"].get<std::size_t>(), input);
+  EXPECT_EQ(rep["stages"][0]["name"], "register");
+  EXPECT_EQ(rep["stages"][0]["in"].get<std::size_t>(), input);
+
+  // cloud.pcd holds exactly the kept returns.
+  const io::PcdTable cloud = io::read_pcd(r.out + "/cloud.pcd");
+  EXPECT_EQ(cloud.header.points, rep["kept"].get<std::uint64_t>());
+}
+
+TEST(Cli, ReturnsOutsideThePoseSpanAreLabelledAndCounted) {
+  SimRun r = make_run();
+  // Keep only the poses of the first half of the run.
+  std::vector<PoseSample> half;
+  const double t_end = r.result.passes[0].pass.stamp.back();
+  for (const auto& s : r.result.poses)
+    if (s.stamp <= t_end) half.push_back(s);
+  sim::write_pose_csv(half, r.cfg.rpy_order, r.dir + "/poses.csv");
+  const auto res = run_cli({"run", r.yaml});
+  ASSERT_EQ(res.exit_code, 0) << res.err;
+  EXPECT_NE(res.out.find("no_pose="), std::string::npos) << res.out;
+  EXPECT_NE(res.out.find("outputs in " + r.out), std::string::npos) << res.out;
+  const auto rep = nlohmann::json::parse(test::read_text(r.out + "/report.json"));
+  EXPECT_GT(rep["labels"]["no_pose"].get<int>(), 1000);
+  EXPECT_EQ(rep["stages"][0]["rejected"]["no_pose"], rep["labels"]["no_pose"]);
+}
+
+TEST(Cli, ValidateReadsNoScan) {
+  const SimRun r = make_run();
+  test::write_text(r.files[1], "garbage");
+  auto res = run_cli({"validate", r.yaml});
+  EXPECT_EQ(res.exit_code, 0) << res.err;
+  EXPECT_NE(res.out.find("valid: 1 stage(s) (register), 2 pass file(s)"), std::string::npos) << res.out;
+  res = run_cli({"run", r.yaml});
+  EXPECT_EQ(res.exit_code, 3);
+  EXPECT_TRUE(no_outputs_in(r.out)) << "a failed run leaves no output";
+}
+
+TEST(Cli, StagesAndDescribe) {
+  auto res = run_cli({"stages"});
+  EXPECT_EQ(res.exit_code, 0);
+  EXPECT_NE(res.out.find("register"), std::string::npos);
+  res = run_cli({"describe", "register"});
+  ASSERT_EQ(res.exit_code, 0);
+  // Every option with its default, bounds and unit.
+  EXPECT_TRUE(std::regex_search(res.out, std::regex(R"(skew_correction\s+bool\s+true\s)"))) << res.out;
+  EXPECT_TRUE(std::regex_search(res.out, std::regex(R"(max_pose_gap\s+double\s+1\s+\[0, inf\)\s+s\s)"))) << res.out;
+  res = run_cli({"describe", "sensor"});
+  EXPECT_TRUE(std::regex_search(res.out, std::regex(R"(range_max\s+double\s+30\s+\(0, inf\)\s+m\s)"))) << res.out;
+  res = run_cli({"describe", "regster"});
+  EXPECT_EQ(res.exit_code, 2);
+  EXPECT_NE(res.err.find("did you mean 'register'?"), std::string::npos);
+  res = run_cli({"frobnicate"});
+  EXPECT_EQ(res.exit_code, 2);
+}
+
+// ---- bad input: every case names the file, the line or field and the rule; exit code; no output
+
+struct BadCase {
+  const char* name;
+  int exit_code;
+  const char* message;
+};
+
+void PrintTo(const BadCase& c, std::ostream* os) { *os << c.name; }
+
+class BadInput : public ::testing::TestWithParam<BadCase> {};
+
+namespace {
+void break_run(const std::string& name, SimRun& r, std::vector<std::string>& args) {
+  const std::string y = test::read_text(r.yaml);
+  const auto set_yaml = [&](const std::string& from, const std::string& to) {
+    std::string s = y;
+    const auto p = s.find(from);
+    ASSERT_NE(p, std::string::npos) << from;
+    test::write_text(r.yaml, s.replace(p, from.size(), to));
+  };
+  const std::string pass0 = test::read_text(r.files[0]);
+  const std::string poses = test::read_text(r.dir + "/poses.csv");
+  const auto line_start = [&](int n) {  // 1-based line n of the pose file
+    std::size_t p = 0;
+    for (int i = 1; i < n; ++i) p = poses.find('\n', p) + 1;
+    return p;
+  };
+  if (name == "unknown_stage") set_yaml("type: register", "type: regster");
+  if (name == "unknown_key") set_yaml("type: register\n", "type: register\n    skew_corection: true\n");
+  if (name == "wrong_type") set_yaml("type: register\n", "type: register\n    max_pose_gap: soon\n");
+  if (name == "out_of_range") set_yaml("range_min: 0.1", "range_min: -1");
+  if (name == "empty_pipeline") set_yaml("stages:\n  - type: register\n", "stages: []\n");
+  if (name == "override_out_of_range") args = {"--set", "sensor.beam_divergence=3"};
+  if (name == "missing_field") {
+    std::string s = pass0;
+    const std::string from = "FIELDS line beam range bearing amplitude nod stamp";
+    s.replace(s.find(from), from.size(), "FIELDS line beam range bearing amplitude nid stamp");
+    test::write_text(r.files[0], s);
+  }
+  if (name == "truncated_pcd") test::write_text(r.files[1], pass0.substr(0, pass0.size() / 2));
+  if (name == "header_claims_more") {
+    std::string s = pass0;
+    const std::string h = "HEIGHT 60";
+    s.replace(s.find(h), h.size(), "HEIGHT 61");
+    const std::string pts = "POINTS " + std::to_string(60 * r.cfg.scanner.beams);
+    s.replace(s.find(pts), pts.size(), "POINTS " + std::to_string(61 * r.cfg.scanner.beams));
+    test::write_text(r.files[0], s);
+  }
+  if (name == "nan_in_poses") {
+    std::string s = poses;
+    const std::size_t p = line_start(3);
+    s.replace(p, s.find('\n', p) - p, "100.5,nan,0,0,0,0,0");
+    test::write_text(r.dir + "/poses.csv", s);
+  }
+  if (name == "inf_in_poses") {
+    std::string s = poses;
+    const std::size_t p = line_start(4);
+    const std::size_t c = s.find(',', p);
+    s.replace(c, s.find(',', c + 1) - c, ",inf");
+    test::write_text(r.dir + "/poses.csv", s);
+  }
+  if (name == "non_increasing_pose_stamps") {
+    std::string s = poses;
+    const std::size_t a = line_start(5), b = line_start(6), c = line_start(7);
+    const std::string l5 = s.substr(a, b - a), l6 = s.substr(b, c - b);
+    s.replace(a, c - a, l6 + l5);
+    test::write_text(r.dir + "/poses.csv", s);
+  }
+  if (name == "missing_pass_file") {  // an explicit list (a glob would just match fewer files)
+    set_yaml(r.dir + "/pass_*.pcd", "[" + r.files[0] + ", " + r.files[1] + "]");
+    fs::remove(r.files[1]);
+  }
+  if (name == "scans_is_directory") set_yaml(r.dir + "/pass_*.pcd", r.dir);
+  if (name == "pipeline_missing") args = {"--no-such-file"};
+}
+}  // namespace
+
+TEST_P(BadInput, FailsWithAClearMessageAndNoOutput) {
+  const BadCase& c = GetParam();
+  SimRun r = make_run(c.name);
+  std::vector<std::string> extra;
+  break_run(c.name, r, extra);
+  std::vector<std::string> args = {"run", r.yaml};
+  if (std::string(c.name) == "pipeline_missing") args = {"run", r.dir + "/nope.yaml"};
+  else args.insert(args.end(), extra.begin(), extra.end());
+  const auto res = run_cli(args);
+  EXPECT_EQ(res.exit_code, c.exit_code) << res.err;
+  EXPECT_TRUE(std::regex_search(res.err, std::regex(c.message))) << "stderr: " << res.err << "\nexpected: " << c.message;
+  EXPECT_TRUE(no_outputs_in(r.out)) << "a failed run leaves no output";
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, BadInput,
+    ::testing::Values(
+        BadCase{"unknown_stage", 2, R"(pipeline\.yaml:\d+: unknown stage type 'regster' \(did you mean 'register'\?\))"},
+        BadCase{"unknown_key", 2, R"(pipeline\.yaml:\d+: stage 'register' \(register\): unknown option 'skew_corection' \(did you mean 'skew_correction'\?\))"},
+        BadCase{"wrong_type", 2, R"(stage 'register' \(register\): option 'max_pose_gap' = 'soon' must be a number)"},
+        BadCase{"out_of_range", 2, R"(pipeline\.yaml:\d+: sensor: option 'range_min' = '-1' must be at least 0 m)"},
+        BadCase{"override_out_of_range", 2, R"(--set sensor\.beam_divergence=3: sensor: option 'beam_divergence' = '3' must be at most 0\.2 rad)"},
+        BadCase{"empty_pipeline", 2, R"(the pipeline is empty)"},
+        BadCase{"missing_field", 3, R"(pass_000\.pcd: missing required field 'nod')"},
+        BadCase{"truncated_pcd", 3, R"(pass_001\.pcd: truncated: the header claims 5460 points)"},
+        BadCase{"header_claims_more", 3, R"(pass_000\.pcd: truncated: the header claims 5551 points .* but the file holds \d+ bytes of data \(5460 whole points\))"},
+        BadCase{"nan_in_poses", 3, R"(poses\.csv:3: column 'x': 'nan' is not finite)"},
+        BadCase{"inf_in_poses", 3, R"(poses\.csv:4: column 'x': 'inf' is not finite)"},
+        BadCase{"non_increasing_pose_stamps", 3, R"(poses\.csv:6: stamp .* is not after the previous stamp .*strictly increasing)"},
+        BadCase{"missing_pass_file", 3, R"(pipeline\.yaml:\d+: input\.scans: file '.*pass_001\.pcd' does not exist)"},
+        BadCase{"scans_is_directory", 3, R"(input\.scans: '.*' is a directory)"},
+        BadCase{"pipeline_missing", 2, R"(nope\.yaml: cannot read the pipeline file)"}),
+    [](const ::testing::TestParamInfo<BadCase>& i) { return std::string(i.param.name); });
+
+TEST(Cli, AFailedRunDoesNotClobberEarlierOutputs) {
+  SimRun r = make_run();
+  ASSERT_EQ(run_cli({"run", r.yaml, "-q"}).exit_code, 0);
+  const std::string before = test::read_text(r.out + "/returns.pcd");
+  test::write_text(r.files[1], "garbage");
+  EXPECT_EQ(run_cli({"run", r.yaml, "-q"}).exit_code, 3);
+  EXPECT_EQ(test::read_text(r.out + "/returns.pcd"), before);
+  std::size_t files = 0;
+  for (const auto& e : fs::directory_iterator(r.out)) {
+    EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
+    ++files;
+  }
+  EXPECT_EQ(files, 3u);
+}
+
+// ---- every shipped pipeline runs; every invalid pipeline fails with its message -----------
+
+TEST(Pipelines, EveryShippedPipelineRuns) {
+  std::size_t n = 0;
+  for (const auto& e : fs::directory_iterator(fs::path(PCDP_SOURCE_DIR) / "pipelines")) {
+    if (e.path().extension() != ".yaml") continue;
+    ++n;
+    const std::string out = test::fresh_dir(e.path().stem().string());
+    const auto res = run_cli({"run", e.path().string(), "--output-dir", out, "--quiet"});
+    ASSERT_EQ(res.exit_code, 0) << e.path() << ": " << res.err;
+    const auto rep = nlohmann::json::parse(test::read_text(out + "/report.json"));
+    std::uint64_t input = 0;
+    for (const auto& f : rep["config"]["input"]["scans"]) input += io::read_pcd_header(f.get<std::string>()).points;
+    EXPECT_EQ(io::read_pcd_header(out + "/returns.pcd").points, input) << e.path();
+  }
+  EXPECT_GE(n, 1u);
+}
+
+TEST(Pipelines, EveryInvalidPipelineFailsWithItsMessage) {
+  // tests/data/invalid/*.yaml start with "# expect-exit: N" and "# expect-error: REGEX".
+  std::size_t n = 0;
+  for (const auto& e : fs::directory_iterator(fs::path(PCDP_SOURCE_DIR) / "tests/data/invalid")) {
+    if (e.path().extension() != ".yaml") continue;
+    ++n;
+    std::ifstream f(e.path());
+    std::string l1, l2;
+    std::getline(f, l1);
+    std::getline(f, l2);
+    ASSERT_EQ(l1.rfind("# expect-exit: ", 0), 0u) << e.path();
+    ASSERT_EQ(l2.rfind("# expect-error: ", 0), 0u) << e.path();
+    const int code = std::stoi(l1.substr(15));
+    const std::string rx = l2.substr(16);
+    const auto res = run_cli({"validate", e.path().string()});
+    EXPECT_EQ(res.exit_code, code) << e.path() << ": " << res.err;
+    EXPECT_TRUE(std::regex_search(res.err, std::regex(rx))) << e.path() << "\nstderr: " << res.err << "\nexpected: " << rx;
+  }
+  EXPECT_GE(n, 5u);
+}

@@ -1,0 +1,38 @@
+// Helpers shared by the tests: temporary folders, running the CLI, reading outputs.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "pcdp/io/pcd.hpp"
+#include "pcdp/sim/nodding_sim.hpp"
+
+namespace pcdp::test {
+
+/// A fresh, empty folder under the build tree's test tmp dir, named after the current test.
+std::string fresh_dir(const std::string& tag = "");
+
+struct CliResult {
+  int exit_code = -1;
+  std::string out;  ///< stdout
+  std::string err;  ///< stderr
+};
+/// Runs the real pcd_pipeline binary with `args` (shell-quoted here).
+CliResult run_cli(const std::vector<std::string>& args);
+
+void write_text(const std::string& path, const std::string& text);
+std::string read_text(const std::string& path);
+
+/// A small simulated run (vehicle moving with sway, constant-rate nod) with exact truth.
+sim::SimConfig small_sim_config();
+
+/// A pipeline YAML for a run written by sim::write_run into `dir`.
+std::string pipeline_yaml(const sim::SimConfig& cfg, const std::string& dir, const std::string& out_dir,
+                          const std::string& extra_register_options = "");
+
+/// Column `name` of a PCD table as doubles.
+std::vector<double> column(const io::PcdTable& t, const std::string& name);
+
+double median(std::vector<double> v);
+
+}  // namespace pcdp::test

@@ -1,0 +1,149 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "pcdp/pass.hpp"
+#include "pcdp/sim/nodding_sim.hpp"
+#include "pcdp/stages/register.hpp"
+#include "test_support.hpp"
+
+using namespace pcdp;
+
+namespace {
+struct Errors {
+  double median = 0, max = 0;
+  std::size_t compared = 0;
+};
+
+Errors compare(const Pass& p, const sim::SimPass& truth) {
+  std::vector<double> e;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    if (!p.is_kept(i)) continue;
+    const Eigen::Vector3d got(p.x[i], p.y[i], p.z[i]);
+    e.push_back((got - truth.true_point[i]).norm());
+  }
+  Errors out;
+  out.compared = e.size();
+  out.median = test::median(e);
+  for (double v : e) out.max = std::max(out.max, v);
+  return out;
+}
+
+struct Fixture {
+  sim::SimConfig cfg = test::small_sim_config();
+  sim::SimResult run;
+  PoseTrack poses;
+  SensorParams sensor;
+  Eigen::Isometry3d T_V_N;
+  Fixture() {
+    cfg.passes = 1;
+    run = sim::simulate(cfg);
+    poses = PoseTrack(run.poses);
+    sensor.range_max = cfg.scanner.range_max;
+    T_V_N = make_transform(cfg.mount_translation, cfg.mount_rpy, cfg.rpy_order);
+  }
+};
+}  // namespace
+
+TEST(Register, NoiseFreePassRegistersToTheTruth) {
+  for (RpyOrder order : {RpyOrder::kXyz, RpyOrder::kZyx}) {
+    Fixture f;
+    f.cfg.rpy_order = order;
+    f.run = sim::simulate(f.cfg);
+    f.poses = PoseTrack(f.run.poses);
+    f.T_V_N = make_transform(f.cfg.mount_translation, f.cfg.mount_rpy, order);
+    Pass p = f.run.passes[0].pass;
+    register_pass(p, RegisterParams{}, f.sensor, f.T_V_N, &f.poses);
+    const Errors e = compare(p, f.run.passes[0]);
+    EXPECT_GT(e.compared, p.size() / 2);
+    EXPECT_LT(e.median, 2e-4) << rpy_order_name(order);  // pose interpolation at 100 Hz is the only approximation
+    // The sensor origin is the nod-axis position.
+    const Eigen::Isometry3d T = sim::vehicle_pose(f.cfg, p.stamp[0]) * f.T_V_N;
+    EXPECT_LT((Eigen::Vector3d(p.ox[0], p.oy[0], p.oz[0]) - T.translation()).norm(), 1e-4);
+  }
+}
+
+TEST(Register, SkewCorrectionOffIsMeasurablyWorse) {
+  Fixture f;
+  Pass on = f.run.passes[0].pass, off = on;
+  register_pass(on, RegisterParams{true, 1.0}, f.sensor, f.T_V_N, &f.poses);
+  register_pass(off, RegisterParams{false, 1.0}, f.sensor, f.T_V_N, &f.poses);
+  const Errors a = compare(on, f.run.passes[0]), b = compare(off, f.run.passes[0]);
+  EXPECT_GT(b.median, 20 * a.median);
+  EXPECT_GT(b.median, 0.01);  // centimetres: omega * tau * r / 2 at a few metres
+}
+
+TEST(Register, LabelsNoReturnOutOfRangeAndNoPose) {
+  Fixture f;
+  Pass p = f.run.passes[0].pass;
+  p.range[0] = 0.0f;
+  p.range[1] = std::numeric_limits<float>::quiet_NaN();
+  p.range[2] = 0.05f;  // below range_min
+  p.range[3] = 45.0f;  // above range_max
+  // A pose track that ends half way through the pass.
+  std::vector<PoseSample> half;
+  const double t_mid = p.stamp[p.size() / 2];
+  for (const auto& s : f.run.poses)
+    if (s.stamp <= t_mid) half.push_back(s);
+  const PoseTrack short_track(half);
+  register_pass(p, RegisterParams{}, f.sensor, f.T_V_N, &short_track);
+  EXPECT_EQ(p.label[0], Label::kNoReturn);
+  EXPECT_EQ(p.label[1], Label::kNoReturn);
+  EXPECT_EQ(p.label[2], Label::kOutOfRange);
+  EXPECT_EQ(p.label[3], Label::kOutOfRange);
+  EXPECT_TRUE(std::isnan(p.x[0]));
+  EXPECT_FALSE(std::isnan(p.x[3]));  // out of range still has its point
+  std::size_t no_pose = 0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    if (p.stamp[i] > short_track.end_stamp() && p.range[i] > 0.1f && p.range[i] < 30.0f) {
+      EXPECT_EQ(p.label[i], Label::kNoPose) << i;
+      EXPECT_TRUE(std::isnan(p.x[i]));
+      ++no_pose;
+    }
+  }
+  EXPECT_GT(no_pose, 100u);
+}
+
+TEST(Register, PoseGapsLongerThanTheLimitGiveNoPose) {
+  Fixture f;
+  std::vector<PoseSample> gappy;
+  const double t_mid = f.run.passes[0].pass.stamp[f.run.passes[0].pass.size() / 2];
+  for (const auto& s : f.run.poses)
+    if (std::fabs(s.stamp - t_mid) > 0.2) gappy.push_back(s);  // a 0.4 s hole
+  const PoseTrack track(gappy);
+  Pass p = f.run.passes[0].pass;
+  register_pass(p, RegisterParams{true, 0.25}, f.sensor, f.T_V_N, &track);
+  std::size_t in_gap = 0;
+  for (std::size_t i = 0; i < p.size(); ++i)
+    if (std::fabs(p.stamp[i] - t_mid) < 0.19 && p.range[i] > 0.1f) {
+      EXPECT_EQ(p.label[i], Label::kNoPose);
+      ++in_gap;
+    }
+  EXPECT_GT(in_gap, 0u);
+  Pass q = f.run.passes[0].pass;
+  register_pass(q, RegisterParams{true, 0.0}, f.sensor, f.T_V_N, &track);  // 0 disables the gap check
+  EXPECT_EQ(std::count(q.label.begin(), q.label.end(), Label::kNoPose), 0);
+}
+
+TEST(Register, RangeCalibrationIsAppliedBeforeProjection) {
+  Fixture f;
+  f.sensor.range_k = 1.01;
+  f.sensor.range_b = -0.02;
+  Pass p = f.run.passes[0].pass;
+  register_pass(p, RegisterParams{}, f.sensor, f.T_V_N, &f.poses);
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    if (!p.is_kept(i)) continue;
+    EXPECT_NEAR(p.range_cal[i], 1.01 * p.range[i] - 0.02, 1e-5);
+    const Eigen::Vector3d d = Eigen::Vector3d(p.x[i], p.y[i], p.z[i]) - Eigen::Vector3d(p.ox[i], p.oy[i], p.oz[i]);
+    EXPECT_NEAR(d.norm(), p.range_cal[i], 1e-5);
+  }
+}
+
+TEST(Register, WithoutPosesTheVehicleFrameIsTheMapFrame) {
+  Fixture f;
+  Pass p = f.run.passes[0].pass;
+  register_pass(p, RegisterParams{}, f.sensor, f.T_V_N, nullptr);
+  EXPECT_EQ(std::count(p.label.begin(), p.label.end(), Label::kNoPose), 0);
+  EXPECT_NEAR(p.ox[0], f.cfg.mount_translation.x(), 1e-12);
+  EXPECT_NEAR(p.oz[0], f.cfg.mount_translation.z(), 1e-12);
+}

@@ -1,0 +1,136 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "pcdp/transforms.hpp"
+
+using namespace pcdp;
+
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+
+// The expanded RPY matrix exactly as printed in Broten & Collier 2005, section 6.2.
+Eigen::Matrix3d broten_collier_expanded(double f, double t, double p) {
+  const double cf = std::cos(f), sf = std::sin(f), ct = std::cos(t), st = std::sin(t), cp = std::cos(p), sp = std::sin(p);
+  Eigen::Matrix3d r;
+  r << ct * cp, -ct * sp, st,                                   //
+      cf * sp + sf * st * cp, cf * cp - sf * st * sp, -sf * ct,  //
+      sf * sp - cf * st * cp, sf * cp + cf * st * sp, cf * ct;
+  return r;
+}
+}  // namespace
+
+TEST(Transforms, XyzEqualsBrotenCollierExpandedMatrixForRandomAngles) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> a(-kPi, kPi);
+  for (int i = 0; i < 1000; ++i) {
+    const double f = a(rng), t = a(rng), p = a(rng);
+    const Eigen::Matrix3d r = rpy_to_matrix({f, t, p}, RpyOrder::kXyz);
+    EXPECT_LT((r - broten_collier_expanded(f, t, p)).cwiseAbs().maxCoeff(), 1e-14) << f << " " << t << " " << p;
+  }
+}
+
+TEST(Transforms, ZyxIsRep103AndDiffersFromXyz) {
+  const Rpy rpy{0.3, -0.2, 1.1};
+  const Eigen::Matrix3d expected = (Eigen::AngleAxisd(1.1, Eigen::Vector3d::UnitZ()) *
+                                    Eigen::AngleAxisd(-0.2, Eigen::Vector3d::UnitY()) *
+                                    Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitX()))
+                                       .toRotationMatrix();
+  EXPECT_LT((rpy_to_matrix(rpy, RpyOrder::kZyx) - expected).cwiseAbs().maxCoeff(), 1e-14);
+  EXPECT_GT((rpy_to_matrix(rpy, RpyOrder::kXyz) - expected).cwiseAbs().maxCoeff(), 1e-2);
+}
+
+TEST(Transforms, ElementaryRotationsAreRightHanded) {
+  // Rot(z, 90 deg) takes x to y; Rot(x, 90) takes y to z; Rot(y, 90) takes z to x.
+  EXPECT_TRUE((rot_z(kPi / 2) * Eigen::Vector3d::UnitX()).isApprox(Eigen::Vector3d::UnitY(), 1e-12));
+  EXPECT_TRUE((rot_x(kPi / 2) * Eigen::Vector3d::UnitY()).isApprox(Eigen::Vector3d::UnitZ(), 1e-12));
+  EXPECT_TRUE((rot_y(kPi / 2) * Eigen::Vector3d::UnitZ()).isApprox(Eigen::Vector3d::UnitX(), 1e-12));
+}
+
+class RpyRoundTrip : public ::testing::TestWithParam<RpyOrder> {};
+
+TEST_P(RpyRoundTrip, MatrixToRpyInvertsRpyToMatrix) {
+  const RpyOrder order = GetParam();
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> a(-kPi + 1e-6, kPi - 1e-6), b(-kPi / 2 + 1e-6, kPi / 2 - 1e-6);
+  for (int i = 0; i < 1000; ++i) {
+    const Rpy in{a(rng), b(rng), a(rng)};
+    const Rpy out = matrix_to_rpy(rpy_to_matrix(in, order), order);
+    EXPECT_NEAR(out.roll, in.roll, 1e-9);
+    EXPECT_NEAR(out.pitch, in.pitch, 1e-9);
+    EXPECT_NEAR(out.yaw, in.yaw, 1e-9);
+    // And the matrix round trip, which holds for any angles.
+    const Eigen::Matrix3d m = rpy_to_matrix(in, order);
+    EXPECT_LT((rpy_to_matrix(matrix_to_rpy(m, order), order) - m).cwiseAbs().maxCoeff(), 1e-12);
+  }
+}
+
+TEST_P(RpyRoundTrip, GimbalLockStillReproducesTheMatrix) {
+  const RpyOrder order = GetParam();
+  for (double pitch : {kPi / 2, -kPi / 2}) {
+    const Eigen::Matrix3d m = rpy_to_matrix({0.4, pitch, -0.7}, order);
+    const Rpy out = matrix_to_rpy(m, order);
+    EXPECT_NEAR(out.yaw, 0.0, 1e-12);
+    EXPECT_LT((rpy_to_matrix(out, order) - m).cwiseAbs().maxCoeff(), 1e-9);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Orders, RpyRoundTrip, ::testing::Values(RpyOrder::kXyz, RpyOrder::kZyx));
+
+TEST(Transforms, NodFramePointConvention) {
+  // DESIGN.md: nu > 0 to the left, eta > 0 above the horizon.
+  const Eigen::Vector3d left = nod_frame_point(2.0, kPi / 2, 0.0);
+  EXPECT_NEAR(left.y(), 2.0, 1e-12);
+  const Eigen::Vector3d up = nod_frame_point(2.0, 0.0, 0.3);
+  EXPECT_NEAR(up.z(), 2.0 * std::sin(0.3), 1e-12);
+  EXPECT_GT(up.z(), 0.0);
+  EXPECT_NEAR(nod_frame_point(3.0, 0.7, -0.4).norm(), 3.0, 1e-12);
+  // The nod is Rot(y, -eta) of the in-plane point (see transforms.hpp).
+  const Eigen::Vector3d inplane = 3.0 * Eigen::Vector3d(std::cos(0.7), std::sin(0.7), 0.0);
+  EXPECT_TRUE((rot_y(0.4) * inplane).isApprox(nod_frame_point(3.0, 0.7, -0.4), 1e-12));
+}
+
+TEST(Transforms, SlerpEndpointsMidpointAndShortestArc) {
+  PoseSample a, b;
+  a.stamp = 0.0;
+  b.stamp = 2.0;
+  a.position = {0, 0, 0};
+  b.position = {2, 4, -2};
+  a.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitZ()));
+  b.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(1.0, Eigen::Vector3d::UnitZ()));
+  EXPECT_TRUE(interpolate(a, b, 0.0).orientation.isApprox(a.orientation, 1e-12));
+  EXPECT_TRUE(interpolate(a, b, 1.0).orientation.isApprox(b.orientation, 1e-12));
+  const PoseSample m = interpolate(a, b, 0.5);
+  EXPECT_TRUE(m.position.isApprox(Eigen::Vector3d(1, 2, -1), 1e-12));
+  EXPECT_DOUBLE_EQ(m.stamp, 1.0);
+  EXPECT_NEAR(Eigen::AngleAxisd(m.orientation).angle(), 0.6, 1e-12);
+  // Constant angular rate: the angle is linear in s (not so for a normalized lerp).
+  for (double s : {0.1, 0.25, 0.8}) EXPECT_NEAR(Eigen::AngleAxisd(interpolate(a, b, s).orientation).angle(), 0.2 + 0.8 * s, 1e-12);
+  // -q is the same rotation: slerp must take the short way (angle 0.6 at the middle, not pi-ish).
+  PoseSample bn = b;
+  bn.orientation.coeffs() = -b.orientation.coeffs();
+  EXPECT_NEAR(Eigen::AngleAxisd(interpolate(a, bn, 0.5).orientation).angle(), 0.6, 1e-12);
+}
+
+TEST(Transforms, PoseTrackInterpolatesAndReportsCoverage) {
+  std::vector<PoseSample> s(3);
+  for (int i = 0; i < 3; ++i) {
+    s[i].stamp = 10.0 + i;
+    s[i].position = {static_cast<double>(i), 0, 0};
+    s[i].orientation = Eigen::Quaterniond(Eigen::AngleAxisd(0.1 * i, Eigen::Vector3d::UnitX()));
+  }
+  const PoseTrack track(s);
+  EXPECT_TRUE(track.covers(10.0));
+  EXPECT_TRUE(track.covers(12.0));
+  EXPECT_FALSE(track.covers(9.999));
+  EXPECT_FALSE(track.covers(12.001));
+  std::size_t hint = 0;
+  const Eigen::Isometry3d T = track.at(11.5, hint);
+  EXPECT_NEAR(T.translation().x(), 1.5, 1e-12);
+  EXPECT_NEAR(Eigen::AngleAxisd(T.linear()).angle(), 0.15, 1e-12);
+  EXPECT_EQ(hint, 1u);
+  // Queries out of order still work (the hint is only a hint).
+  EXPECT_NEAR(track.at(10.25, hint).translation().x(), 0.25, 1e-12);
+  EXPECT_DOUBLE_EQ(track.gap_at(11.2, hint), 1.0);
+}
