@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 
 #include "pcdp/config.hpp"
@@ -58,7 +59,7 @@ int cmd_run(const RunArgs& a) {
       std::cout << "  " << st.name << " (" << st.type << "): " << st.in << " -> " << st.out << " kept, "
                 << st.seconds << " s\n";
     for (const auto& w : s.warnings) std::cout << "warning: " << w << "\n";
-    std::cout << "outputs in " << s.output_dir << ":";
+    std::cout << "outputs in " << std::filesystem::absolute(s.output_dir).lexically_normal().string() << ":";
     for (const auto& o : s.outputs) std::cout << " " << o.substr(o.find_last_of('/') + 1);
     std::cout << "\n";
   }
