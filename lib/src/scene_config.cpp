@@ -27,14 +27,34 @@ const OptionSchema& scanner_schema() {
       opt_int("beams", 181, 1.0, 10000.0, "", "returns per scan line"),
       opt_double("bearing_min", -1.5707963, -3.15, 3.15, "rad", "bearing of the first beam"),
       opt_double("bearing_max", 1.5707963, -3.15, 3.15, "rad", "bearing of the last beam"),
-      opt_double("line_period", 0.0133, 1e-4, 10.0, "s", "time of one sweep (SICK LMS 200: 13.3 ms)"),
-      opt_double("nod_min", -0.5, -1.57, 1.57, "rad", "lowest nod angle"),
+      opt_double("line_period", 0.0133, 1e-4, 10.0, "s", "time of one sweep (SICK LMS 200: 13.3 ms; Broten & Collier 3.2)"),
+      opt_enum("profile", "constant_rate", {"constant_rate", "uniform_distance"},
+               "nodding profile (Broten & Collier 4.1 / 4.2 with motion compensation 5.1)"),
+      opt_double("nod_min", -0.5, -1.57, 1.57, "rad", "lowest nod angle (eta > 0 above the horizon)"),
       opt_double("nod_max", 0.1, -1.57, 1.57, "rad", "highest nod angle"),
-      opt_double("nod_rate", 0.5, 0.0, 10.0, "rad/s", "constant nod rate (triangle profile)"),
-      opt_double("encoder_resolution", 0.0012566, 0.0, 0.1, "rad", "encoder readings are quantized to this"),
-      opt_double("range_max", 30.0, 0.1, 1000.0, "m", "no return beyond this range"),
-      opt_double("range_sigma", 0.0053, 0.0, 1.0, "m", "1-sigma Gaussian range noise"),
-      opt_double("amplitude_scale", 2000.0, 0.0, 1e6, "", "amplitude = scale * reflectivity * cos(incidence) / range"),
+      opt_double("nod_rate", 0.5, 0.0, 10.0, "rad/s", "constant_rate profile: nod rate (triangle wave)"),
+      opt_double("sample_distance", 0.2, 0.001, 10.0, "m", "uniform_distance profile: ground distance between lines"),
+      opt_double("max_nod_rate", 1.5708, 0.01, 20.0, "rad/s", "uniform_distance profile: mechanism's maximum rate (90 deg/s)"),
+      opt_double("dead_zone_time", 0.0, 0.0, 60.0, "s", "uniform_distance: do not look nearer than speed x this (5.2); 0: off"),
+      opt_double("encoder_resolution", 0.0012566, 0.0, 0.1, "rad", "encoder readings are quantized to this (0.072 deg)"),
+      opt_double("range_min", 0.1, 0.0, 100.0, "m", "false ranges are drawn from [range_min, range_max]"),
+      opt_double("range_max", 30.0, 0.1, 1000.0, "m", "no power from beyond this range"),
+      opt_double("range_n", 0.9998, 0.5, 2.0, "", "range model scale n (Ye & Borenstein eq. 6)"),
+      opt_double("range_c", 0.0036, -1.0, 1.0, "m", "range model offset c (Ye & Borenstein eq. 6: 3.6 mm)"),
+      opt_double("range_sigma", 0.0053, 0.0, 1.0, "m", "range noise sigma (Ye & Borenstein eq. 6: 5.3 mm)"),
+      opt_double("range_quantum", 0.001, 0.0, 1.0, "m", "output resolution (LMS 200: integer millimetres)"),
+      opt_double("beam_divergence", 0.004, 0.0, 0.2, "rad", "full-angle divergence alpha (Liu et al. eq. 2)"),
+      opt_int("subrays", 19, 1.0, 1000.0, "", "rays sampling each beam footprint"),
+      opt_double("transceiver_separation", 0.04, 0.0, 1.0, "m", "s - q (Liu et al. eq. 4); 0: coaxial"),
+      opt_enum("transceiver_angle", "fixed", {"fixed", "mirror"},
+               "fixed: theta = offset; mirror: theta = bearing + offset (Liu et al. Fig. 15)"),
+      opt_double("transceiver_angle_offset", 0.0, -3.15, 3.15, "rad", "theta offset; 0: separated in the scan plane"),
+      opt_double("amplitude_scale", 2000.0, 0.0, 1e7, "", "amplitude = scale * reflectivity * cos(incidence) / d^p"),
+      opt_double("amplitude_range_exponent", 1.0, 0.0, 4.0, "", "p; 2 for raw power, about 1 fits Liu et al.'s P1, P2"),
+      opt_double("amplitude_sigma", 2.0, 0.0, 100.0, "", "noise of the reported amplitude"),
+      opt_double("min_amplitude", 18.0, 0.0, 255.0, "", "minimum detectable amplitude (Liu et al. Fig. 17)"),
+      opt_double("false_range_probability", 0.5, 0.0, 1.0, "", "below min_amplitude: chance of a false range (else 0)"),
+      opt_double("mixed_pixel_tolerance", 0.05, 0.0, 10.0, "m", "truth: a return farther than this from every lit surface is a mixed pixel"),
   };
   return s;
 }
@@ -43,14 +63,17 @@ const OptionSchema& motion_schema() {
   static const OptionSchema s = {
       opt_double("start.x", 0.0, -1e6, 1e6, "m", "vehicle position at t0, x"),
       opt_double("start.y", 0.0, -1e6, 1e6, "m", "vehicle position at t0, y"),
-      opt_double("start.z", 0.0, -1e4, 1e4, "m", "vehicle position at t0, z"),
+      opt_double("start.z", 0.0, -1e4, 1e4, "m", "vehicle z at t0 (height above the terrain with follow_terrain)"),
       opt_double("speed", 1.0, 0.0, 100.0, "m/s", "forward speed"),
       opt_double("yaw", 0.0, -3.15, 3.15, "rad", "initial heading"),
       opt_double("yaw_rate", 0.0, -2.0, 2.0, "rad/s", "turn rate"),
+      opt_bool("follow_terrain", true, "vehicle height, pitch and roll follow the terrain"),
       opt_double("roll_amplitude", 0.0, 0.0, 0.5, "rad", "sinusoidal roll sway"),
       opt_double("pitch_amplitude", 0.0, 0.0, 0.5, "rad", "sinusoidal pitch sway"),
       opt_double("sway_frequency", 0.5, 0.0, 50.0, "Hz", "frequency of the sway"),
       opt_double("pose_rate", 100.0, 1.0, 10000.0, "Hz", "rate of the written pose file"),
+      opt_double("position_sigma", 0.005, 0.0, 10.0, "m", "noise of the written positions (per axis)"),
+      opt_double("rpy_sigma", 0.00035, 0.0, 0.5, "rad", "noise of the written roll, pitch, yaw"),
   };
   return s;
 }
@@ -120,13 +143,35 @@ sim::SimConfig load_scene_from_string(const std::string& yaml, const std::string
   s.bearing_min = sc.get_double("bearing_min");
   s.bearing_max = sc.get_double("bearing_max");
   s.line_period = sc.get_double("line_period");
+  s.profile = sc.get_string("profile") == "uniform_distance" ? sim::NodProfile::kUniformDistance
+                                                              : sim::NodProfile::kConstantRate;
   s.nod_min = sc.get_double("nod_min");
   s.nod_max = sc.get_double("nod_max");
   s.nod_rate = sc.get_double("nod_rate");
+  s.sample_distance = sc.get_double("sample_distance");
+  s.max_nod_rate = sc.get_double("max_nod_rate");
+  s.dead_zone_time = sc.get_double("dead_zone_time");
   s.encoder_resolution = sc.get_double("encoder_resolution");
+  s.range_min = sc.get_double("range_min");
   s.range_max = sc.get_double("range_max");
+  s.range_n = sc.get_double("range_n");
+  s.range_c = sc.get_double("range_c");
   s.range_sigma = sc.get_double("range_sigma");
+  s.range_quantum = sc.get_double("range_quantum");
+  s.beam_divergence = sc.get_double("beam_divergence");
+  s.subrays = static_cast<int>(sc.get_int("subrays"));
+  s.transceiver_separation = sc.get_double("transceiver_separation");
+  s.mirror = sc.get_string("transceiver_angle") == "mirror";
+  s.transceiver_angle_offset = sc.get_double("transceiver_angle_offset");
   s.amplitude_scale = sc.get_double("amplitude_scale");
+  s.amplitude_range_exponent = sc.get_double("amplitude_range_exponent");
+  s.amplitude_sigma = sc.get_double("amplitude_sigma");
+  s.min_amplitude = sc.get_double("min_amplitude");
+  s.false_range_probability = sc.get_double("false_range_probability");
+  s.mixed_pixel_tolerance = sc.get_double("mixed_pixel_tolerance");
+  if (s.range_min >= s.range_max)
+    throw ConfigError(src + ": scanner: range_min (" + format_value(s.range_min) + ") must be less than range_max (" +
+                      format_value(s.range_max) + ")");
   if (s.nod_min >= s.nod_max)
     throw ConfigError(src + ": scanner: nod_min (" + format_value(s.nod_min) + ") must be less than nod_max (" +
                       format_value(s.nod_max) + ")");
@@ -139,6 +184,9 @@ sim::SimConfig load_scene_from_string(const std::string& yaml, const std::string
   m.pitch_amplitude = mo.get_double("pitch_amplitude");
   m.sway_frequency = mo.get_double("sway_frequency");
   m.pose_rate = mo.get_double("pose_rate");
+  m.follow_terrain = mo.get_bool("follow_terrain");
+  m.position_sigma = mo.get_double("position_sigma");
+  m.rpy_sigma = mo.get_double("rpy_sigma");
   c.scene.ground_z = te.get_double("ground_z");
   c.scene.undulation_amplitude = te.get_double("undulation_amplitude");
   c.scene.undulation_wavelength = te.get_double("undulation_wavelength");

@@ -4,11 +4,15 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <sstream>
 
 #include "pcdp/config.hpp"
 #include "pcdp/errors.hpp"
 #include "pcdp/pipeline.hpp"
+#include "pcdp/evaluate.hpp"
+#include "pcdp/io/atomic_file.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
 #include "pcdp/stage.hpp"
 
@@ -75,16 +79,40 @@ int cmd_simulate(const std::string& scene, const std::string& output_dir, bool q
   const sim::SimConfig cfg = load_scene(scene);
   const sim::SimResult r = sim::simulate(cfg);
   const auto files = sim::write_run(r, cfg, output_dir);
-  sim::write_truth(r, output_dir);
+  sim::write_truth(r, cfg, output_dir);
+  {  // the scene travels with its truth, so `evaluate` knows the noise it should expect
+    std::ifstream in(scene, std::ios::binary);
+    std::ostringstream text;
+    text << in.rdbuf();
+    io::write_file_atomic((std::filesystem::path(output_dir) / "truth" / "scene.yaml").string(), text.str());
+  }
   if (!quiet) {
-    std::size_t n = 0, returns = 0;
+    std::size_t n = 0;
+    LabelHistogram truth{};
     for (const auto& p : r.passes) {
       n += p.pass.size();
-      for (float v : p.pass.range) returns += v > 0.0f;
+      for (Label l : p.truth) ++truth[static_cast<std::size_t>(l)];
     }
-    std::cout << "simulated " << files.size() << " pass(es), " << n << " returns (" << returns << " with a range), "
-              << r.poses.size() << " poses -> " << output_dir << " (pass_*.pcd, poses.csv, truth/)\n";
+    std::cout << "simulated " << files.size() << " pass(es), " << n << " returns, " << r.poses.size() << " poses -> "
+              << output_dir << " (pass_*.pcd, poses.csv, truth/)\ntruth:";
+    for (std::size_t l = 0; l < kLabelCount; ++l)
+      if (truth[l]) std::cout << " " << label_name(static_cast<Label>(l)) << "=" << truth[l];
+    std::cout << "\n";
   }
+  return 0;
+}
+
+int cmd_evaluate(const std::string& truth, const std::string& run, const std::string& json, bool quiet) {
+  NoiseModel noise;
+  const std::string scene = (std::filesystem::path(truth) / "truth" / "scene.yaml").string();
+  if (std::filesystem::exists(scene)) {
+    const sim::SimConfig c = load_scene(scene);
+    noise = {c.scanner.range_sigma, c.scanner.encoder_resolution, c.motion.position_sigma, c.motion.rpy_sigma, true};
+  }
+  const Evaluation e = evaluate_run(truth, run, noise);
+  const std::string out = json.empty() ? (std::filesystem::path(run) / "evaluation.json").string() : json;
+  io::write_file_atomic(out, evaluation_json(e));
+  if (!quiet) std::cout << evaluation_table(e) << "written: " << out << "\n";
   return 0;
 }
 

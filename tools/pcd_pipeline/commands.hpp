@@ -18,6 +18,7 @@ int cmd_run(const RunArgs& a);
 int cmd_validate(const RunArgs& a);
 int cmd_stages();
 int cmd_describe(const std::string& what);
+int cmd_evaluate(const std::string& truth, const std::string& run, const std::string& json, bool quiet);
 int cmd_simulate(const std::string& scene, const std::string& output_dir, bool quiet);
 
 }  // namespace pcdp::cli

@@ -35,6 +35,14 @@ int main(int argc, char** argv) {
   simulate->add_option("--output-dir", sim_out, "output folder")->required();
   simulate->add_flag("-q,--quiet", sim_quiet, "print nothing but errors");
 
+  std::string ev_truth, ev_run, ev_json;
+  bool ev_quiet = false;
+  CLI::App* evaluate = app.add_subcommand("evaluate", "score a run against simulator ground truth");
+  evaluate->add_option("--truth", ev_truth, "folder written by `simulate` (holds truth/)")->required();
+  evaluate->add_option("--run", ev_run, "output folder of a run (holds returns.pcd)")->required();
+  evaluate->add_option("--json", ev_json, "where to write the scores (default: RUN/evaluation.json)");
+  evaluate->add_flag("-q,--quiet", ev_quiet, "print nothing but errors");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -47,6 +55,7 @@ int main(int argc, char** argv) {
     if (*validate) return cli::cmd_validate(run_args);
     if (*stages) return cli::cmd_stages();
     if (*describe) return cli::cmd_describe(describe_what);
+    if (*evaluate) return cli::cmd_evaluate(ev_truth, ev_run, ev_json, ev_quiet);
     if (*simulate) return cli::cmd_simulate(scene, sim_out, sim_quiet);
   } catch (const ConfigError& e) {
     std::cerr << "error: " << e.what() << "\n";
