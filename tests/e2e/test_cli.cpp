@@ -5,6 +5,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <regex>
+#include <map>
 #include <set>
 #include <tuple>
 
@@ -319,4 +320,49 @@ TEST(Pipelines, EveryInvalidPipelineFailsWithItsMessage) {
     EXPECT_TRUE(std::regex_search(res.err, std::regex(rx))) << e.path() << "\nstderr: " << res.err << "\nexpected: " << rx;
   }
   EXPECT_GE(n, 5u);
+}
+
+// ---- the sample scene: regenerated bit for bit, useful truth, a register-only run scored ------
+
+TEST(SampleScans, RegenerateBitForBit) {
+  const std::string out = test::fresh_dir();
+  const auto res = run_cli({"simulate", std::string(PCDP_SOURCE_DIR) + "/sample_scans/scene.yaml", "--output-dir", out});
+  ASSERT_EQ(res.exit_code, 0) << res.err;
+  const fs::path committed = fs::path(PCDP_SOURCE_DIR) / "sample_scans";
+  std::size_t compared = 0;
+  for (const std::string rel : {"pass_000.pcd", "pass_001.pcd", "pass_002.pcd", "pass_003.pcd", "poses.csv",
+                                "truth/pass_000.pcd", "truth/pass_003.pcd", "truth/height.pcd"}) {
+    EXPECT_EQ(test::read_text(out + "/" + rel), test::read_text((committed / rel).string()))
+        << rel << " differs: regenerate sample_scans (see sample_scans/README.md)";
+    ++compared;
+  }
+  EXPECT_EQ(compared, 8u);
+}
+
+TEST(SampleScans, HoldEveryTruthLabelInUsefulNumbers) {
+  std::map<int, std::size_t> count;
+  for (int k = 0; k < 4; ++k) {
+    char name[64];
+    std::snprintf(name, sizeof name, "/sample_scans/truth/pass_%03d.pcd", k);
+    const io::PcdTable t = io::read_pcd(std::string(PCDP_SOURCE_DIR) + name);
+    for (double l : test::column(t, "label")) ++count[static_cast<int>(l)];
+  }
+  EXPECT_GE(count[static_cast<int>(Label::kOcclusion)], 20u);     // tens of occlusion false ranges
+  EXPECT_GE(count[static_cast<int>(Label::kMixedPixel)], 200u);   // hundreds of mixed pixels
+  EXPECT_GE(count[static_cast<int>(Label::kLowAmplitude)], 100u);
+  EXPECT_GE(count[static_cast<int>(Label::kNoReturn)], 100u);
+}
+
+TEST(SampleScans, RegisterOnlyErrorIsConsistentWithTheSimulatedNoise) {
+  const std::string out = test::fresh_dir();
+  auto res = run_cli({"run", std::string(PCDP_SOURCE_DIR) + "/pipelines/nodding_terrain.yaml", "--output-dir", out, "-q"});
+  ASSERT_EQ(res.exit_code, 0) << res.err;
+  res = run_cli({"evaluate", "--truth", std::string(PCDP_SOURCE_DIR) + "/sample_scans", "--run", out});
+  ASSERT_EQ(res.exit_code, 0) << res.err;
+  std::cout << res.out;
+  const auto j = nlohmann::json::parse(test::read_text(out + "/evaluation.json"));
+  const double median = j["registration_error"]["median"], implied = j["registration_error"]["implied_median"];
+  ASSERT_GT(implied, 0.0);
+  EXPECT_GT(median, implied / 2);
+  EXPECT_LT(median, implied * 2);
 }

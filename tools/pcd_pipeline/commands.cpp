@@ -13,6 +13,7 @@
 #include "pcdp/pipeline.hpp"
 #include "pcdp/evaluate.hpp"
 #include "pcdp/io/atomic_file.hpp"
+#include "pcdp/nod_plan.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
 #include "pcdp/stage.hpp"
 
@@ -113,6 +114,35 @@ int cmd_evaluate(const std::string& truth, const std::string& run, const std::st
   const std::string out = json.empty() ? (std::filesystem::path(run) / "evaluation.json").string() : json;
   io::write_file_atomic(out, evaluation_json(e));
   if (!quiet) std::cout << evaluation_table(e) << "written: " << out << "\n";
+  return 0;
+}
+
+int cmd_plan_nod(const NodPlanParams& p, const std::string& csv) {
+  if (p.height <= 0 || p.sample_distance <= 0 || p.sweep_period <= 0 || p.max_rate <= 0 || p.encoder_resolution < 0 ||
+      p.speed < 0 || p.dead_zone_time < 0)
+    throw ConfigError("plan-nod: height, sample distance, sweep period and maximum rate must be positive; speed, "
+                      "dead-zone time and encoder resolution must not be negative");
+  const NodPlan plan = plan_nod(p);
+  constexpr double kDeg = 57.29577951308232;
+  if (!csv.empty()) io::write_file_atomic(csv, nod_plan_csv(plan, p));
+  std::printf("%8s %10s %14s %14s  %s\n", "depr.deg", "ground m", "down deg/s", "up deg/s", "uniform sample distance");
+  for (const auto& r : plan.rows) {
+    std::string why = r.achievable ? "achievable" : "";
+    if (r.in_dead_zone) why += "dead zone ";
+    if (r.resolution_limited) why += "below encoder resolution ";
+    if (r.rate_limited) why += "above maximum rate ";
+    if (!r.achievable && why.empty()) why = "vehicle outruns the sample distance";
+    std::printf("%8.1f %10.3f %14.2f %14.2f  %s\n", r.angle * kDeg, r.ground_distance,
+                r.step_down / p.sweep_period * kDeg, r.step_up / p.sweep_period * kDeg, why.c_str());
+  }
+  if (plan.achievable_to > plan.achievable_from)
+    std::printf("uniform sample distance %.3f m achievable from %.1f to %.1f deg below the horizon", p.sample_distance,
+                plan.achievable_from * kDeg, plan.achievable_to * kDeg);
+  else
+    std::printf("uniform sample distance %.3f m is achievable at no tabulated angle", p.sample_distance);
+  if (plan.dead_zone_angle < 1.5707) std::printf("; dead zone beyond %.1f deg", plan.dead_zone_angle * kDeg);
+  std::printf("\n");
+  if (!csv.empty()) std::printf("written: %s\n", csv.c_str());
   return 0;
 }
 

@@ -5,6 +5,10 @@
 #include <string>
 #include <vector>
 
+namespace pcdp {
+struct NodPlanParams;
+}
+
 namespace pcdp::cli {
 
 struct RunArgs {
@@ -19,6 +23,7 @@ int cmd_validate(const RunArgs& a);
 int cmd_stages();
 int cmd_describe(const std::string& what);
 int cmd_evaluate(const std::string& truth, const std::string& run, const std::string& json, bool quiet);
+int cmd_plan_nod(const NodPlanParams& p, const std::string& csv);
 int cmd_simulate(const std::string& scene, const std::string& output_dir, bool quiet);
 
 }  // namespace pcdp::cli

@@ -5,6 +5,7 @@
 
 #include "commands.hpp"
 #include "pcdp/errors.hpp"
+#include "pcdp/nod_plan.hpp"
 
 int main(int argc, char** argv) {
   using namespace pcdp;
@@ -43,6 +44,19 @@ int main(int argc, char** argv) {
   evaluate->add_option("--json", ev_json, "where to write the scores (default: RUN/evaluation.json)");
   evaluate->add_flag("-q,--quiet", ev_quiet, "print nothing but errors");
 
+  NodPlanParams np;
+  std::string np_csv;
+  CLI::App* plan = app.add_subcommand("plan-nod", "nodding profile for a mount (Broten & Collier 4-5): where a uniform sample distance is achievable");
+  plan->add_option("--height", np.height, "laser height above the ground, m")->capture_default_str();
+  plan->add_option("--sample-distance", np.sample_distance, "desired ground distance between lines, m")->capture_default_str();
+  plan->add_option("--speed", np.speed, "vehicle speed, m/s")->capture_default_str();
+  plan->add_option("--sweep-period", np.sweep_period, "time of one scan line, s")->capture_default_str();
+  plan->add_option("--dead-zone-time", np.dead_zone_time, "stopping distance = speed x this, s (0: none)")->capture_default_str();
+  plan->add_option("--encoder-resolution", np.encoder_resolution, "rad")->capture_default_str();
+  plan->add_option("--max-rate", np.max_rate, "maximum nod rate, rad/s")->capture_default_str();
+  plan->add_option("--rate", np.rate, "constant-rate profile: nod rate, rad/s (for its sample-distance column)")->capture_default_str();
+  plan->add_option("--csv", np_csv, "also write the table as CSV");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -56,6 +70,7 @@ int main(int argc, char** argv) {
     if (*stages) return cli::cmd_stages();
     if (*describe) return cli::cmd_describe(describe_what);
     if (*evaluate) return cli::cmd_evaluate(ev_truth, ev_run, ev_json, ev_quiet);
+    if (*plan) return cli::cmd_plan_nod(np, np_csv);
     if (*simulate) return cli::cmd_simulate(scene, sim_out, sim_quiet);
   } catch (const ConfigError& e) {
     std::cerr << "error: " << e.what() << "\n";
