@@ -160,6 +160,7 @@ Pass pass_from_table(io::PcdTable&& table, const std::string& source, std::size_
   }
 
   p.label.assign(n, Label::kKept);
+  p.flags.assign(n, 0);
   return p;
 }
 

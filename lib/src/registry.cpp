@@ -4,12 +4,14 @@
 
 #include "pcdp/stage.hpp"
 #include "pcdp/stages/register.hpp"
+#include "pcdp/stages/reject_occlusion.hpp"
 
 namespace pcdp {
 
 const std::vector<StageInfo>& builtin_stages() {
   static const std::vector<StageInfo> stages = {
       register_stage_info(),
+      reject_occlusion_stage_info(),
   };
   return stages;
 }

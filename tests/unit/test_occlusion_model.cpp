@@ -86,8 +86,12 @@ TEST(OcclusionModel, MinimumRisesWithThetaWithSmallerSeparationAndAsD2Approaches
   double crossing = -1;
   for (const auto& [th, m] : curve) {
     const double deg = std::fabs(th) * 180.0 / kPi;
-    if (deg < 10 || deg > 170) EXPECT_LT(m, 18.0) << deg;
-    if (deg > 55 && deg < 125) EXPECT_GT(m, 18.0) << deg;
+    if (deg < 10 || deg > 170) {
+      EXPECT_LT(m, 18.0) << deg;
+    }
+    if (deg > 55 && deg < 125) {
+      EXPECT_GT(m, 18.0) << deg;
+    }
     if (th >= 0 && crossing < 0 && m >= 18.0) crossing = deg;
   }
   std::cout << "Fig. 18 threshold crossing: " << crossing << " deg\n";

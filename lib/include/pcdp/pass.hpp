@@ -17,6 +17,9 @@ struct ExtraField {
   std::vector<std::uint8_t> data;  ///< points * field.bytes(), in pass order
 };
 
+/// Pass::flags bits.
+inline constexpr std::uint8_t kFlagRepaired = 1;  ///< range replaced by its prediction (reject_occlusion repair)
+
 struct Pass {
   std::size_t index = 0;  ///< position of the pass file in the run's ordered list
   std::string source;     ///< file path
@@ -33,6 +36,7 @@ struct Pass {
 
   // Derived by stages.
   std::vector<Label> label;        ///< kKept until a stage says otherwise
+  std::vector<std::uint8_t> flags; ///< bit flags, see kFlag* (written to returns.pcd)
   std::vector<float> range_cal;    ///< calibrated range, m (NaN where there is no return)
   std::vector<float> nod_at_return;///< nod angle at the return's own stamp (skew-corrected)
   std::vector<double> x, y, z;     ///< map frame, NaN where there is no point

@@ -12,7 +12,10 @@ std::vector<PcdField> base_fields(bool with_label) {
   std::vector<PcdField> f = {{"x", 'F', 4, 1},     {"y", 'F', 4, 1},    {"z", 'F', 4, 1},
                              {"range", 'F', 4, 1}, {"amplitude", 'F', 4, 1}, {"pass", 'U', 4, 1},
                              {"line", 'U', 4, 1},  {"beam", 'U', 4, 1}};
-  if (with_label) f.push_back({"label", 'U', 1, 1});
+  if (with_label) {
+    f.push_back({"label", 'U', 1, 1});
+    f.push_back({"flags", 'U', 1, 1});
+  }
   f.push_back({"stamp", 'F', 8, 1});
   return f;
 }
@@ -62,6 +65,7 @@ void ReturnsWriter::append(const Pass& pass) {
     std::uint8_t* d = rows.data() + i * pb;
     d = put_common(d, pass, i);
     d = put(d, static_cast<std::uint8_t>(pass.label[i]));
+    d = put(d, pass.flags.empty() ? std::uint8_t{0} : pass.flags[i]);
     d = put(d, pass.stamp[i]);
     for (const auto& e : pass.extra) {
       const std::size_t b = e.field.bytes();

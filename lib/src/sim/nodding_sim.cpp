@@ -369,6 +369,7 @@ SimResult simulate(const SimConfig& cfg) {
     }
     p.line_begin.push_back(p.range.size());
     p.label.assign(p.range.size(), Label::kKept);
+    p.flags.assign(p.range.size(), 0);
     out.passes.push_back(std::move(sp));
   }
   // Poses over the whole run (with a margin), written with IMU-like noise.

@@ -14,7 +14,7 @@ struct Pass;
 
 namespace pcdp::io {
 
-/// returns.pcd: x y z range amplitude pass line beam label stamp, then the input's extra fields
+/// returns.pcd: x y z range amplitude pass line beam label flags stamp, then the input's extra fields
 /// (carried through). x y z are NaN where there is no point.
 class ReturnsWriter {
  public:
