@@ -67,10 +67,10 @@ class Sequencer {
     const double tol = prm_.range_tolerance + prm_.range_tolerance_ratio * rng;
     if (kl.count > 0 && kr.count > 0 && smooth_fit(kl, kr, tol, rng)) {
       j.consistent = true;
-    } else if ((fits(kl) || fits(kr)) && (fits(kl) || !reliable(kl)) && (fits(kr) || !reliable(kr))) {
-      // Otherwise some side must agree, and every reliable side must: a false range is
-      // arbitrary, so agreeing with a stable surface on each side by chance is rare. A side whose
-      // nearest neighbour is itself a suspect (maybe a false range) is no evidence either way.
+    } else if (fits(kl) || fits(kr)) {
+      // At a discontinuity a valid return lies on one of the two surfaces; a false range is
+      // arbitrary and agrees with one by chance only (a few per cent), and the amplitude test
+      // catches most false ranges in a dip anyway.
       j.consistent = true;
     }
     const Side l = side(seq, pos, -1, stable_), r = side(seq, pos, +1, stable_);
@@ -107,8 +107,6 @@ class Sequencer {
   }
 
  private:
-  bool reliable(const Side& sd) const { return sd.count > 0 && stable_[sd.nearest]; }
-
   /// The kept neighbours on both sides lie on one line (range against position): a smooth surface.
   /// Then the suspect fits if it lies on that line too.
   bool smooth_fit(const Side& l, const Side& r, double tol, double rng) const {
@@ -166,10 +164,15 @@ class Sequencer {
     sd.amplitude = a[sd.count / 2];
     sd.range = r[0];
     sd.predicted = r[0];
-    if (sd.count >= 2) {  // extrapolate the two nearest linearly to the suspect's position
+    if (sd.count >= 2) {
       sd.second = r[1];
-      const double slope = (r[1] - r[0]) / (at[1] - at[0]);
-      sd.predicted = r[0] - slope * at[0];
+      // Extrapolate the two nearest linearly to the suspect's position, if they are one surface
+      // (two false ranges would predict an arbitrary value).
+      const double step = std::fabs(r[1] - r[0]) / (at[1] - at[0]);
+      if (step <= std::max(prm_.jump_min, prm_.jump_ratio * std::min(r[0], r[1]))) {
+        const double slope = (r[1] - r[0]) / (at[1] - at[0]);
+        sd.predicted = r[0] - slope * at[0];
+      }
     }
     return sd;
   }
