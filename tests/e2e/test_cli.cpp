@@ -1,6 +1,7 @@
 // End-to-end tests through the real pcd_pipeline binary.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -365,4 +366,22 @@ TEST(SampleScans, RegisterOnlyErrorIsConsistentWithTheSimulatedNoise) {
   ASSERT_GT(implied, 0.0);
   EXPECT_GT(median, implied / 2);
   EXPECT_LT(median, implied * 2);
+}
+
+TEST(Cli, AmplitudeModelPrintsTheProfileAndDrawsIt) {
+  const std::string dir = test::fresh_dir();
+  auto res = run_cli({"amplitude-model", "--profile-csv", dir + "/p.csv", "--theta-csv", dir + "/t.csv", "--svg", dir + "/fig"});
+  ASSERT_EQ(res.exit_code, 0) << res.err;
+  EXPECT_NE(res.out.find("BELOW the minimum detectable amplitude 18"), std::string::npos) << res.out;  // Fig. 13
+  const std::string csv = test::read_text(dir + "/p.csv");
+  EXPECT_EQ(csv.rfind("x_m,amplitude,amplitude_coaxial\n", 0), 0u);
+  EXPECT_GT(std::count(csv.begin(), csv.end(), '\n'), 400);
+  EXPECT_NE(test::read_text(dir + "/fig_profile.svg").find("<polyline"), std::string::npos);
+  EXPECT_NE(test::read_text(dir + "/fig_theta.svg").find("<polyline"), std::string::npos);
+  // A coaxial sensor: no dip below the threshold.
+  res = run_cli({"amplitude-model", "--separation", "0"});
+  EXPECT_NE(res.out.find("above the minimum detectable amplitude"), std::string::npos) << res.out;
+  res = run_cli({"amplitude-model", "--d1", "10", "--d2", "5"});
+  EXPECT_EQ(res.exit_code, 2);
+  EXPECT_NE(res.err.find("need 0 < d1 < d2"), std::string::npos);
 }

@@ -14,6 +14,8 @@
 #include "pcdp/evaluate.hpp"
 #include "pcdp/io/atomic_file.hpp"
 #include "pcdp/nod_plan.hpp"
+#include "pcdp/io/svg_plot.hpp"
+#include "pcdp/occlusion_model.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
 #include "pcdp/stage.hpp"
 
@@ -143,6 +145,75 @@ int cmd_plan_nod(const NodPlanParams& p, const std::string& csv) {
   if (plan.dead_zone_angle < 1.5707) std::printf("; dead zone beyond %.1f deg", plan.dead_zone_angle * kDeg);
   std::printf("\n");
   if (!csv.empty()) std::printf("written: %s\n", csv.c_str());
+  return 0;
+}
+
+int cmd_amplitude_model(const EdgeParams& e, const AmplitudeModelArgs& a) {
+  if (!(e.d1 > 0) || !(e.d2 > e.d1))
+    throw ConfigError("amplitude-model: need 0 < d1 < d2 (got d1 = " + format_value(e.d1) + ", d2 = " + format_value(e.d2) + ")");
+  if (e.p1 < 0 || e.p2 < 0 || e.alpha <= 0 || e.separation < 0 || a.points < 2)
+    throw ConfigError("amplitude-model: need p1, p2, separation >= 0, alpha > 0 and --points >= 2");
+  constexpr double kDeg = 57.29577951308232;
+  const ProfileMinimum m = profile_minimum(e);
+  std::printf("Liu et al. 2005 amplitude model: d1 = %g m, d2 = %g m, P1 = %g, P2 = %g, alpha = %g rad, s - q = %g m, theta = %g deg\n",
+              e.d1, e.d2, e.p1, e.p2, e.alpha, e.separation, e.theta * kDeg);
+  std::printf("X1 = %.3f mm (eq. 4), 2 r1 = %.3f mm, X2 = %.3f mm (eq. 12)\n", x1(e) * 1000, e.d1 * e.alpha * 1000, x2(e) * 1000);
+  std::printf("minimum %.2f at x = %.3f mm: %s the minimum detectable amplitude %g\n", m.amplitude, m.x * 1000,
+              m.amplitude < a.min_amplitude ? "BELOW" : "above", a.min_amplitude);
+  const auto prof = amplitude_profile(e, a.points);
+  EdgeParams coax = e;
+  coax.separation = 0.0;
+  std::vector<std::pair<double, double>> prof_coax;  // at the same x
+  for (const auto& [x, v] : prof) prof_coax.emplace_back(x, amplitude_at(coax, x));
+  const auto theta = minimum_vs_theta(e, 361);
+  double lo = 0, hi = 0;
+  for (const auto& [th, mm] : theta)
+    if (th >= 0 && mm >= a.min_amplitude) {
+      if (lo == 0) lo = th;
+      hi = th;
+    }
+  if (hi > 0) std::printf("no dip below %g for %.1f <= |theta| <= %.1f deg (Fig. 18)\n", a.min_amplitude, lo * kDeg, hi * kDeg);
+  if (!a.profile_csv.empty()) {
+    std::ostringstream os;
+    os << "x_m,amplitude,amplitude_coaxial\n";
+    for (std::size_t i = 0; i < prof.size(); ++i) os << prof[i].first << ',' << prof[i].second << ',' << prof_coax[i].second << '\n';
+    io::write_file_atomic(a.profile_csv, os.str());
+    std::printf("written: %s\n", a.profile_csv.c_str());
+  }
+  if (!a.theta_csv.empty()) {
+    std::ostringstream os;
+    os << "theta_deg,minimum_amplitude\n";
+    for (const auto& [th, mm] : theta) os << th * kDeg << ',' << mm << '\n';
+    io::write_file_atomic(a.theta_csv, os.str());
+    std::printf("written: %s\n", a.theta_csv.c_str());
+  }
+  if (!a.svg_prefix.empty()) {
+    io::PlotSpec p1;
+    p1.title = "Received amplitude past a range edge (Liu et al. 2005, Fig. 13)";
+    p1.xlabel = "footprint displacement x past the edge (mm)";
+    p1.ylabel = "amplitude";
+    io::PlotSeries sep{"s-q = " + format_value(e.separation * 1000) + " mm", {}, "#1f77b4", false};
+    io::PlotSeries cx{"coaxial", {}, "#2ca02c", true};
+    for (std::size_t i = 0; i < prof.size(); ++i) {
+      sep.points.emplace_back(prof[i].first * 1000, prof[i].second);
+      cx.points.emplace_back(prof_coax[i].first * 1000, prof_coax[i].second);
+    }
+    p1.series = {sep, cx};
+    p1.hline = a.min_amplitude;
+    p1.hline_label = "min detectable";
+    io::write_file_atomic(a.svg_prefix + "_profile.svg", io::svg_line_plot(p1));
+    io::PlotSpec p2;
+    p2.title = "Minimum amplitude against transceiver angle (Fig. 18)";
+    p2.xlabel = "transceiver separation angle theta (deg)";
+    p2.ylabel = "minimum amplitude";
+    io::PlotSeries t{"minimum over x", {}, "#1f77b4", false};
+    for (const auto& [th, mm] : theta) t.points.emplace_back(th * kDeg, mm);
+    p2.series = {t};
+    p2.hline = a.min_amplitude;
+    p2.hline_label = "min detectable";
+    io::write_file_atomic(a.svg_prefix + "_theta.svg", io::svg_line_plot(p2));
+    std::printf("written: %s_profile.svg, %s_theta.svg\n", a.svg_prefix.c_str(), a.svg_prefix.c_str());
+  }
   return 0;
 }
 

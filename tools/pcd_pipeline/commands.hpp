@@ -7,6 +7,7 @@
 
 namespace pcdp {
 struct NodPlanParams;
+struct EdgeParams;
 }
 
 namespace pcdp::cli {
@@ -24,6 +25,12 @@ int cmd_stages();
 int cmd_describe(const std::string& what);
 int cmd_evaluate(const std::string& truth, const std::string& run, const std::string& json, bool quiet);
 int cmd_plan_nod(const NodPlanParams& p, const std::string& csv);
+struct AmplitudeModelArgs {
+  double min_amplitude = 18.0;
+  int points = 400;
+  std::string profile_csv, theta_csv, svg_prefix;
+};
+int cmd_amplitude_model(const EdgeParams& e, const AmplitudeModelArgs& a);
 int cmd_simulate(const std::string& scene, const std::string& output_dir, bool quiet);
 
 }  // namespace pcdp::cli

@@ -6,6 +6,7 @@
 #include "commands.hpp"
 #include "pcdp/errors.hpp"
 #include "pcdp/nod_plan.hpp"
+#include "pcdp/occlusion_model.hpp"
 
 int main(int argc, char** argv) {
   using namespace pcdp;
@@ -57,6 +58,22 @@ int main(int argc, char** argv) {
   plan->add_option("--rate", np.rate, "constant-rate profile: nod rate, rad/s (for its sample-distance column)")->capture_default_str();
   plan->add_option("--csv", np_csv, "also write the table as CSV");
 
+  EdgeParams edge;  // defaults: Liu et al. Fig. 13
+  cli::AmplitudeModelArgs am;
+  CLI::App* amp = app.add_subcommand("amplitude-model", "received amplitude past a range edge for a non-coaxial sensor (Liu et al. 2005)");
+  amp->add_option("--d1", edge.d1, "near target range, m")->capture_default_str();
+  amp->add_option("--d2", edge.d2, "far target range, m")->capture_default_str();
+  amp->add_option("--p1", edge.p1, "amplitude of the near target fully lit")->capture_default_str();
+  amp->add_option("--p2", edge.p2, "amplitude of the far target fully lit")->capture_default_str();
+  amp->add_option("--alpha", edge.alpha, "full beam divergence, rad")->capture_default_str();
+  amp->add_option("--separation", edge.separation, "transmitter-receiver separation s - q, m")->capture_default_str();
+  amp->add_option("--theta", edge.theta, "transceiver separation angle, rad")->capture_default_str();
+  amp->add_option("--min-amplitude", am.min_amplitude, "minimum detectable amplitude")->capture_default_str();
+  amp->add_option("--points", am.points, "samples of the profile")->capture_default_str();
+  amp->add_option("--profile-csv", am.profile_csv, "write the profile (x, amplitude, coaxial amplitude) as CSV");
+  amp->add_option("--theta-csv", am.theta_csv, "write the minimum against theta as CSV");
+  amp->add_option("--svg", am.svg_prefix, "draw PREFIX_profile.svg and PREFIX_theta.svg");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -70,6 +87,7 @@ int main(int argc, char** argv) {
     if (*stages) return cli::cmd_stages();
     if (*describe) return cli::cmd_describe(describe_what);
     if (*evaluate) return cli::cmd_evaluate(ev_truth, ev_run, ev_json, ev_quiet);
+    if (*amp) return cli::cmd_amplitude_model(edge, am);
     if (*plan) return cli::cmd_plan_nod(np, np_csv);
     if (*simulate) return cli::cmd_simulate(scene, sim_out, sim_quiet);
   } catch (const ConfigError& e) {

@@ -1,0 +1,103 @@
+#include "pcdp/io/svg_plot.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <sstream>
+
+namespace pcdp::io {
+
+namespace {
+double nice_step(double span, int target) {
+  const double raw = span / std::max(1, target);
+  const double mag = std::pow(10.0, std::floor(std::log10(raw)));
+  for (double m : {1.0, 2.0, 2.5, 5.0, 10.0})
+    if (m * mag >= raw) return m * mag;
+  return 10 * mag;
+}
+
+std::string esc(const std::string& s) {
+  std::string o;
+  for (char c : s) {
+    if (c == '<') o += "&lt;";
+    else if (c == '>') o += "&gt;";
+    else if (c == '&') o += "&amp;";
+    else o += c;
+  }
+  return o;
+}
+
+std::string num(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", std::fabs(v) < 1e-12 ? 0.0 : v);
+  return b;
+}
+}  // namespace
+
+std::string svg_line_plot(const PlotSpec& spec, int width, int height) {
+  double x0 = std::numeric_limits<double>::infinity(), x1 = -x0, y0 = x0, y1 = -x0;
+  for (const auto& s : spec.series)
+    for (const auto& [x, y] : s.points) {
+      if (!std::isfinite(x) || !std::isfinite(y)) continue;
+      x0 = std::min(x0, x);
+      x1 = std::max(x1, x);
+      y0 = std::min(y0, y);
+      y1 = std::max(y1, y);
+    }
+  if (spec.hline) {
+    y0 = std::min(y0, *spec.hline);
+    y1 = std::max(y1, *spec.hline);
+  }
+  if (!(x1 > x0)) x1 = x0 + 1;
+  if (!(y1 > y0)) y1 = y0 + 1;
+  y0 = std::min(y0, 0.0);
+  const double ys = nice_step(y1 - y0, 6), xs = nice_step(x1 - x0, 8);
+  y1 = std::ceil(y1 / ys) * ys;
+  y0 = std::floor(y0 / ys) * ys;
+  const int L = 80, R = 200, T = 50, B = 60;
+  const double pw = width - L - R, ph = height - T - B;
+  const auto px = [&](double x) { return L + (x - x0) / (x1 - x0) * pw; };
+  const auto py = [&](double y) { return T + (1.0 - (y - y0) / (y1 - y0)) * ph; };
+
+  std::ostringstream o;
+  o << "<svg xmlns='http://www.w3.org/2000/svg' width='" << width << "' height='" << height
+    << "' font-family='sans-serif' font-size='13'>\n<rect width='100%' height='100%' fill='white'/>\n";
+  o << "<text x='" << width / 2 << "' y='28' text-anchor='middle' font-size='16'>" << esc(spec.title) << "</text>\n";
+  for (double y = y0; y <= y1 + 1e-9 * ys; y += ys) {
+    o << "<line x1='" << L << "' x2='" << L + pw << "' y1='" << py(y) << "' y2='" << py(y) << "' stroke='#e5e5e5'/>";
+    o << "<text x='" << L - 8 << "' y='" << py(y) + 4 << "' text-anchor='end'>" << num(y) << "</text>\n";
+  }
+  for (double x = std::ceil(x0 / xs) * xs; x <= x1 + 1e-9 * xs; x += xs) {
+    o << "<line x1='" << px(x) << "' x2='" << px(x) << "' y1='" << T << "' y2='" << T + ph << "' stroke='#f0f0f0'/>";
+    o << "<text x='" << px(x) << "' y='" << T + ph + 18 << "' text-anchor='middle'>" << num(x) << "</text>\n";
+  }
+  o << "<rect x='" << L << "' y='" << T << "' width='" << pw << "' height='" << ph << "' fill='none' stroke='black'/>\n";
+  o << "<text x='" << L + pw / 2 << "' y='" << height - 15 << "' text-anchor='middle'>" << esc(spec.xlabel) << "</text>\n";
+  o << "<text transform='translate(20," << T + ph / 2 << ") rotate(-90)' text-anchor='middle'>" << esc(spec.ylabel)
+    << "</text>\n";
+  int row = 0;
+  for (const auto& s : spec.series) {
+    o << "<polyline fill='none' stroke='" << s.color << "' stroke-width='2'" << (s.dashed ? " stroke-dasharray='6,4'" : "")
+      << " points='";
+    for (const auto& [x, y] : s.points)
+      if (std::isfinite(x) && std::isfinite(y)) o << px(x) << ',' << py(y) << ' ';
+    o << "'/>\n";
+    const double ly = T + 10 + 22 * row++;
+    o << "<line x1='" << L + pw + 12 << "' x2='" << L + pw + 40 << "' y1='" << ly << "' y2='" << ly << "' stroke='" << s.color
+      << "' stroke-width='2'" << (s.dashed ? " stroke-dasharray='6,4'" : "") << "/>";
+    o << "<text x='" << L + pw + 46 << "' y='" << ly + 4 << "'>" << esc(s.label) << "</text>\n";
+  }
+  if (spec.hline) {
+    o << "<line x1='" << L << "' x2='" << L + pw << "' y1='" << py(*spec.hline) << "' y2='" << py(*spec.hline)
+      << "' stroke='#d62728' stroke-dasharray='3,3'/>";
+    const double ly = T + 10 + 22 * row;
+    o << "<line x1='" << L + pw + 12 << "' x2='" << L + pw + 40 << "' y1='" << ly << "' y2='" << ly
+      << "' stroke='#d62728' stroke-dasharray='3,3'/><text x='" << L + pw + 46 << "' y='" << ly + 4 << "'>"
+      << esc(spec.hline_label) << "</text>\n";
+  }
+  o << "</svg>\n";
+  return o.str();
+}
+
+}  // namespace pcdp::io
