@@ -106,8 +106,8 @@ int main(int argc, char** argv) {
       if (s.f1 > best_thr.f1) best_thr = s;
     }
     Score best_sor;
-    for (int k : {4, 8, 16, 32, 50}) {
-      for (double m : {0.25, 0.5, 1.0, 1.5, 2.0, 3.0}) {
+    for (int k : {2, 4, 8, 16, 32, 50}) {
+      for (double m : {0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 10.0}) {
         std::fill(rej.begin(), rej.end(), 0);
         for (std::size_t c = 0; c < clouds.size(); ++c) {
           pcl::StatisticalOutlierRemoval<pcl::PointXYZ> sor(true);
