@@ -4,6 +4,7 @@
 
 #include "pcdp/stage.hpp"
 #include "pcdp/stages/register.hpp"
+#include "pcdp/stages/reject_mixed_pixels.hpp"
 #include "pcdp/stages/reject_occlusion.hpp"
 
 namespace pcdp {
@@ -12,6 +13,7 @@ const std::vector<StageInfo>& builtin_stages() {
   static const std::vector<StageInfo> stages = {
       register_stage_info(),
       reject_occlusion_stage_info(),
+      reject_mixed_pixels_stage_info(),
   };
   return stages;
 }

@@ -24,6 +24,7 @@ struct Hit {
   double t = kInf;
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
   double reflectivity = 0.0;
+  int object = -1;  ///< box index, or -1 for the terrain
 };
 
 /// Ray (o + t d, t in (0, hit.t)) against an axis-aligned box; updates `hit` when nearer.
@@ -111,10 +112,17 @@ Hit cast(const Scene& sc, const Eigen::Vector3d& o, const Eigen::Vector3d& d, do
   Hit hit;
   hit.t = t_max;
   bool any = false;
-  for (const auto& b : sc.boxes) any |= hit_box(b, o, d, hit);
+  for (std::size_t k = 0; k < sc.boxes.size(); ++k)
+    if (hit_box(sc.boxes[k], o, d, hit)) {
+      any = true;
+      hit.object = static_cast<int>(k);
+    }
   const double before = hit.t;
   hit_terrain(sc, o, d, t_max, hit);
-  any |= hit.t < before;
+  if (hit.t < before) {
+    any = true;
+    hit.object = -1;
+  }
   if (!any) hit.t = kInf;
   return hit;
 }
@@ -265,8 +273,12 @@ BeamResult cast_beam(const SimConfig& cfg, const Eigen::Vector3d& origin, const 
   const Eigen::Vector3d receiver = origin + s.transceiver_separation * (std::cos(theta) * u + std::sin(theta) * v);
   BeamResult r;
   double wsum = 0.0, wd = 0.0;
-  std::vector<std::pair<double, bool>> dist;  // d_k, visible
-  dist.reserve(static_cast<std::size_t>(K));
+  struct Lit {
+    double d;
+    int object;
+  };
+  std::vector<Lit> lit;  // visible sub-rays
+  lit.reserve(static_cast<std::size_t>(K));
   for (int k = 0; k < K; ++k) {
     Eigen::Vector3d dk = dir;
     if (K > 1 && half > 0) {  // sunflower pattern: uniform over the disk of the footprint
@@ -283,17 +295,34 @@ BeamResult cast_beam(const SimConfig& cfg, const Eigen::Vector3d& origin, const 
     r.amplitude_full += w;
     const Eigen::Vector3d p = origin + hit.t * dk;
     const bool visible = s.transceiver_separation <= 0.0 || !blocked(cfg.scene, p, receiver);
-    dist.emplace_back(hit.t, visible);
     if (!visible) continue;
+    lit.push_back({hit.t, hit.object});
     r.amplitude += w;
     wsum += w;
     wd += w * hit.t;
   }
   if (wsum > 0) {
     r.range = wd / wsum;
+    // Distance from the mixture range to the nearest lit surface: each object's lit sub-rays span
+    // a depth interval (a slanted surface spans a long one at grazing incidence); the range is on
+    // an object if it falls inside (or near) its interval.
     r.min_dev = kInf;
-    for (const auto& [d, vis] : dist)
-      if (vis) r.min_dev = std::min(r.min_dev, std::fabs(d - r.range));
+    std::vector<std::pair<double, double>> span;  // per object: min, max depth
+    std::vector<int> ids;
+    for (const auto& l : lit) {
+      const auto it = std::find(ids.begin(), ids.end(), l.object);
+      if (it == ids.end()) {
+        ids.push_back(l.object);
+        span.emplace_back(l.d, l.d);
+      } else {
+        auto& sp = span[static_cast<std::size_t>(it - ids.begin())];
+        sp.first = std::min(sp.first, l.d);
+        sp.second = std::max(sp.second, l.d);
+      }
+    }
+    r.objects = static_cast<int>(ids.size());
+    for (const auto& [lo, hi] : span)
+      r.min_dev = std::min(r.min_dev, r.range < lo ? lo - r.range : r.range > hi ? r.range - hi : 0.0);
   }
   return r;
 }
@@ -349,7 +378,7 @@ SimResult simulate(const SimConfig& cfg) {
         } else {
           const double z = sc.range_n * beam.range + sc.range_c + sc.range_sigma * xi;
           range = static_cast<float>(std::max(quantize(z, sc.range_quantum), 0.0));
-          truth = beam.min_dev > sc.mixed_pixel_tolerance ? Label::kMixedPixel : Label::kKept;
+          truth = beam.objects > 1 && beam.min_dev > sc.mixed_pixel_tolerance ? Label::kMixedPixel : Label::kKept;
           point = o + beam.range * d;
           if (range <= 0.0f) truth = Label::kNoReturn;
         }

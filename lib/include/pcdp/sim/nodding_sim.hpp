@@ -14,7 +14,9 @@
 //  - minimum detectable amplitude: below it the sensor reads no return (0) or, with probability
 //    `false_range_probability`, a false arbitrary range (Liu et al. sections 3-4);
 //  - mixed pixels: a footprint split over surfaces returns the power-weighted mean range
-//    (Ye & Borenstein 4.5: "a combination of the foreground and background");
+//    (Ye & Borenstein 4.5: "a combination of the foreground and background"); truth calls it a
+//    mixed pixel when the footprint lit two or more objects and the range is more than
+//    mixed_pixel_tolerance from the depth interval each object's lit part spans;
 //  - range model: z = Int_mm(n y + c + xi), xi ~ N(0, sigma) (Ye & Borenstein eq. 6);
 //  - nodding: constant rate (Broten & Collier 4.1) or uniform sample distance with vehicle-motion
 //    compensation (4.2, 5.1) limited by the maximum rate, the dead zone (5.2) and the encoder
@@ -155,7 +157,8 @@ struct BeamResult {
   double amplitude = 0.0;       ///< visible (what the receiver gets)
   double amplitude_full = 0.0;  ///< if nothing hid the footprint from the receiver
   double range = 0.0;           ///< power-weighted mean range of the visible part (0: nothing)
-  double min_dev = 0.0;         ///< smallest |range - d_k| over visible sub-rays
+  double min_dev = 0.0;         ///< distance from range to the nearest lit object's depth interval
+  int objects = 0;              ///< distinct objects (boxes, terrain) the visible footprint lit
   bool any_hit = false;
 };
 BeamResult cast_beam(const SimConfig& cfg, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,

@@ -1,0 +1,86 @@
+// Stage `reject_mixed_pixels`: returns whose footprint straddled a range edge and whose range lies
+// between the two surfaces (Ye & Borenstein 2002, section 4.5: "mixed pixels"; veil points).
+//
+// For each kept return, along its scan line (bearing) and across lines (nod), with the nearest
+// kept neighbours on each side:
+//  1. an edge: the nearest neighbours on the two sides differ by more than jump_min (or jump_ratio
+//     of the range), and the range changes across the return more than edge_factor times faster
+//     per step than within either side (grazing ground changes range in comparable steps
+//     everywhere; a veil hangs between two sides that change slowly);
+//  2. the return fits neither surface alone: its range lies strictly between the two sides, farther
+//     than the tolerance (range_tolerance + range_tolerance_ratio * r + 3 sensor.range_sigma) from
+//     each side and from each side's linear trend;
+//  3. geometry: at the return, the angle between its beam (from its own sensor origin) and the
+//     segment to the neighbour on one side or the other is below max_angle (a veil runs along the
+//     beam; a mixture close to one surface makes a wide angle with that side only);
+//  4. amplitude mixing: with fraction f of the footprint on the near surface, the power-weighted
+//     range and amplitude of a mixture are
+//         r = (f P1 d1 + (1 - f) P2 d2) / (f P1 + (1 - f) P2),   A = f P1 + (1 - f) P2,
+//     so f follows from r, and A must agree with the mixture: not brighter than
+//     A (1 + amplitude_ratio) + amplitude_slack (a non-coaxial receiver can only lose light, so a
+//     dimmer return is allowed unless the sensor is coaxial). Unknown (NaN) amplitudes skip this.
+// One-sided case (`one_sided`): beside a void (no return or only rejected returns within the
+// window: the other surface was too weak to return on its own), a return is a mixed pixel if it
+// breaks from the trend of its one visible surface by more than the tolerance, half that
+// surface's own step and the edge jump, with the beam geometry of 3.
+// Amplitudes at or above amplitude_saturation (clipped) skip test 4.
+// Only the return itself is labelled `mixed_pixel`, never a window of neighbours.
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "pcdp/config.hpp"
+#include "pcdp/stage.hpp"
+
+namespace pcdp {
+
+struct Pass;
+
+struct MixedPixelParams {
+  int window = 4;                    ///< returns searched on each side
+  double jump_min = 0.1;             ///< m
+  double jump_ratio = 0.015;
+  double range_tolerance = 0.02;     ///< m
+  double range_tolerance_ratio = 0.002;
+  double max_angle = 0.6;            ///< rad (34 deg)
+  double edge_factor = 2.0;          ///< per-step range change across the return vs within each side
+  double amplitude_ratio = 0.3;
+  double amplitude_slack = 8.0;      ///< amplitude units
+  bool across_lines = true;
+  double amplitude_saturation = 255.0;  ///< clipped amplitudes say nothing about the mixture
+  bool one_sided = true;
+  int max_span = 3;                  ///< steps between the two sides' nearest neighbours
+};
+
+const OptionSchema& reject_mixed_pixels_schema();
+
+/// Plain arrays of registered returns (map frame) for the core algorithm.
+struct ReturnsView {
+  std::size_t n = 0;
+  const double *x = nullptr, *y = nullptr, *z = nullptr;     ///< points
+  const double *ox = nullptr, *oy = nullptr, *oz = nullptr;  ///< sensor origin of each return
+  const float* range = nullptr;                              ///< range of each return
+  const float* amplitude = nullptr;                          ///< may be null or NaN: unknown
+  const char* usable = nullptr;                              ///< candidate and neighbour (kept)
+};
+
+/// Marks (mixed[i] = 1) the mixed pixels among the returns of one sequence of indices in scan
+/// order (a scan line, or one beam across lines).
+void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq, const MixedPixelParams& p,
+                       double range_sigma, bool coaxial, std::vector<char>& mixed);
+
+/// The stage's function over a registered pass: labels mixed pixels, returns how many.
+std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor);
+
+/// An unorganized Cartesian cloud seen from one viewpoint (e.g. a cloud someone already has):
+/// points are ordered into a spherical range image (elevation bands sorted by azimuth, azimuth
+/// bands sorted by elevation, `resolution` rad wide, about the scan's angular step) and the same
+/// tests run along both. `amplitude` may be empty. Returns a mask of mixed pixels.
+std::vector<char> mixed_pixels_in_cloud(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& viewpoint,
+                                        const std::vector<float>& amplitude, double resolution,
+                                        const MixedPixelParams& p, double range_sigma);
+
+StageInfo reject_mixed_pixels_stage_info();
+
+}  // namespace pcdp

@@ -1,0 +1,258 @@
+#include "pcdp/stages/reject_mixed_pixels.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include "pcdp/pass.hpp"
+
+namespace pcdp {
+
+const OptionSchema& reject_mixed_pixels_schema() {
+  static const OptionSchema s = {
+      opt_int("window", 4, 1.0, 100.0, "returns", "how far to search on each side for neighbours"),
+      opt_double("jump_min", 0.1, 0.0, 100.0, "m", "smallest range step between the two sides that makes an edge"),
+      opt_double("jump_ratio", 0.015, 0.0, 10.0, "", "... or this fraction of the near range, if larger"),
+      opt_double("range_tolerance", 0.02, 0.0, 10.0, "m", "a return within this (+ ratio * r + 3 range_sigma) of a surface is on it"),
+      opt_double("range_tolerance_ratio", 0.002, 0.0, 1.0, "", "relative part of the tolerance"),
+      opt_double("edge_factor", 2.0, 1.0, 100.0, "", "the range must change this many times faster across the return than within each side"),
+      opt_double("max_angle", 0.6, 0.0, 1.5708, "rad", "largest angle between the beam and the segment to a neighbour"),
+      opt_double("amplitude_ratio", 0.3, 0.0, 10.0, "", "a mixture may be this much brighter than predicted (relative)"),
+      opt_double("amplitude_slack", 8.0, 0.0, 255.0, "", "... plus this (amplitude units)"),
+      opt_bool("across_lines", true, "also look across scan lines (same beam)"),
+      opt_int("max_span", 3, 2.0, 100.0, "returns", "the two sides' nearest neighbours may be at most this many steps apart"),
+      opt_double("amplitude_saturation", 255.0, 0.0, 1e9, "", "amplitudes at or above this are clipped: the mixing test is skipped"),
+      opt_bool("one_sided", true, "beside a void, flag returns that break sharply from their one visible surface"),
+  };
+  return s;
+}
+
+namespace {
+struct Nb {
+  int count = 0;
+  std::size_t idx[2] = {0, 0};
+  double r[2] = {0, 0};
+  double at[2] = {0, 0};
+  double predicted = 0;
+};
+
+Nb neighbours(const ReturnsView& v, const std::vector<std::size_t>& seq, std::size_t pos, int dir, const MixedPixelParams& p) {
+  Nb nb;
+  for (int step = 1; step <= p.window && nb.count < 2; ++step) {
+    const long q = static_cast<long>(pos) + dir * step;
+    if (q < 0 || q >= static_cast<long>(seq.size())) break;
+    const std::size_t k = seq[static_cast<std::size_t>(q)];
+    if (!v.usable[k]) continue;
+    nb.idx[nb.count] = k;
+    nb.r[nb.count] = v.range[k];
+    nb.at[nb.count] = step;
+    ++nb.count;
+  }
+  if (nb.count == 0) return nb;
+  nb.predicted = nb.r[0];
+  if (nb.count == 2) {
+    const double step = std::fabs(nb.r[1] - nb.r[0]) / (nb.at[1] - nb.at[0]);
+    if (step <= std::max(p.jump_min, p.jump_ratio * std::min(nb.r[0], nb.r[1])))
+      nb.predicted = nb.r[0] - (nb.r[1] - nb.r[0]) / (nb.at[1] - nb.at[0]) * nb.at[0];
+  }
+  return nb;
+}
+
+double angle_to(const ReturnsView& v, std::size_t i, std::size_t j) {
+  const Eigen::Vector3d p(v.x[i], v.y[i], v.z[i]);
+  const Eigen::Vector3d b = (p - Eigen::Vector3d(v.ox[i], v.oy[i], v.oz[i])).normalized();
+  const Eigen::Vector3d s = Eigen::Vector3d(v.x[j], v.y[j], v.z[j]) - p;
+  const double n = s.norm();
+  if (n < 1e-12) return 0.0;
+  return std::acos(std::min(1.0, std::fabs(b.dot(s)) / n));  // 0 .. pi/2
+}
+
+double median_amp(const ReturnsView& v, const Nb& nb) {
+  if (!v.amplitude) return NAN;
+  if (nb.count == 1) return v.amplitude[nb.idx[0]];
+  return 0.5 * (v.amplitude[nb.idx[0]] + v.amplitude[nb.idx[1]]);
+}
+}  // namespace
+
+void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq, const MixedPixelParams& p,
+                       double range_sigma, bool coaxial, std::vector<char>& mixed) {
+  for (std::size_t pos = 0; pos < seq.size(); ++pos) {
+    const std::size_t i = seq[pos];
+    if (!v.usable[i] || mixed[i]) continue;
+    const Nb l = neighbours(v, seq, pos, -1, p), r = neighbours(v, seq, pos, +1, p);
+    if (l.count == 0 || r.count == 0) {
+      // One-sided: beside a void (no return, or only rejected ones, within the window) the other
+      // surface did not return on its own. A mixture breaks sharply from the trend of the side it
+      // has (by more than the tolerance and half that side's own step); a valid return at the end
+      // of a surface continues it.
+      const Nb& own = l.count ? l : r;
+      if (!p.one_sided || own.count < 2) continue;
+      const double ri = v.range[i];
+      const double tol = p.range_tolerance + p.range_tolerance_ratio * ri + 3.0 * range_sigma;
+      const double step = (own.r[1] - own.r[0]) / (own.at[1] - own.at[0]);
+      const double trend = own.r[0] - step * own.at[0];
+      if (std::fabs(ri - trend) > std::max(tol, 0.5 * std::fabs(step) * own.at[0]) &&
+          std::fabs(ri - own.r[0]) > std::max(p.jump_min, p.jump_ratio * own.r[0]) &&
+          angle_to(v, i, own.idx[0]) <= p.max_angle)
+        mixed[i] = 1;
+      continue;
+    }
+    const double ri = v.range[i];
+    const double tol = p.range_tolerance + p.range_tolerance_ratio * ri + 3.0 * range_sigma;
+    // The two sides must be close: across a run of missing returns they may be different surfaces.
+    if (l.at[0] + r.at[0] > p.max_span) continue;
+    // 1. An edge: the nearest neighbours on the two sides are far apart...
+    const bool left_near = l.r[0] < r.r[0];
+    const Nb& nr = left_near ? l : r;
+    const Nb& fr = left_near ? r : l;
+    if (fr.r[0] - nr.r[0] <= std::max(p.jump_min, p.jump_ratio * nr.r[0])) continue;
+    // ...and much faster than each side changes on its own (grazing ground changes range by
+    // comparable steps everywhere; a veil hangs between two sides that change slowly).
+    // A side's own rate of change, from its two nearest returns, unless the second one lies back
+    // on the other side's surface (a thin post one return wide: its "side" is post, background).
+    const auto rate = [&](const Nb& nb, const Nb& other) {
+      if (nb.count < 2) return 0.0;
+      if (std::fabs(nb.r[1] - other.r[0]) < std::fabs(nb.r[1] - nb.r[0])) return 0.0;
+      return std::fabs(nb.r[1] - nb.r[0]) / (nb.at[1] - nb.at[0]);
+    };
+    const double across = (fr.r[0] - nr.r[0]) / (l.at[0] + r.at[0]);
+    if (across <= p.edge_factor * std::max(rate(l, r), rate(r, l))) continue;
+    // 2. ...and the return lies strictly between them, on neither surface: not within the
+    // tolerance of either side, nor of either side's linear trend (grazing ground changes range
+    // quickly between lines, but smoothly, so it continues a trend; a veil continues none).
+    if (!(ri > nr.r[0] + tol && ri < fr.r[0] - tol)) continue;
+    const auto on_trend = [&](const Nb& nb) {
+      if (nb.count < 2) return false;
+      const double extrap = nb.r[0] - (nb.r[1] - nb.r[0]) / (nb.at[1] - nb.at[0]) * nb.at[0];
+      return std::fabs(ri - extrap) <= tol;
+    };
+    if (on_trend(l) || on_trend(r)) continue;
+    const double d1 = nr.predicted, d2 = fr.predicted;
+    // 3. Geometry: the segment to at least one side runs along the beam (a mixture close to one
+    // surface makes a wide angle with that side's neighbour, a narrow one with the other's).
+    if (std::min(angle_to(v, i, nr.idx[0]), angle_to(v, i, fr.idx[0])) > p.max_angle) continue;
+    const double a = v.amplitude ? static_cast<double>(v.amplitude[i]) : NAN;
+    const double p1 = median_amp(v, nr), p2 = median_amp(v, fr);
+    const bool saturated = a >= p.amplitude_saturation || p1 >= p.amplitude_saturation || p2 >= p.amplitude_saturation;
+    if (std::isfinite(a) && std::isfinite(p1) && std::isfinite(p2) && p1 + p2 > 0 && !saturated) {  // 4. amplitude mixing
+      const double den = p1 * (ri - d1) + p2 * (d2 - ri);
+      const double f = den > 0 ? p2 * (d2 - ri) / den : 0.5;
+      const double pred = f * p1 + (1 - f) * p2;
+      if (a > pred * (1 + p.amplitude_ratio) + p.amplitude_slack) continue;
+      if (coaxial && a < pred * (1 - p.amplitude_ratio) - p.amplitude_slack) continue;
+    }
+    mixed[i] = 1;
+  }
+}
+
+std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor) {
+  const std::size_t n = pass.size();
+  if (pass.range_cal.size() != n) throw std::logic_error("reject_mixed_pixels needs a registered pass");
+  std::vector<char> usable(n), mixed(n, 0);
+  for (std::size_t i = 0; i < n; ++i) usable[i] = pass.is_kept(i) && std::isfinite(pass.x[i]);
+  ReturnsView v{n, pass.x.data(), pass.y.data(), pass.z.data(), pass.ox.data(), pass.oy.data(), pass.oz.data(),
+                pass.range_cal.data(), pass.amplitude.data(), usable.data()};
+  const bool coaxial = sensor.transceiver_separation <= 0.0;
+  std::vector<std::size_t> seq;
+  for (std::size_t k = 0; k < pass.line_count(); ++k) {
+    seq.clear();
+    for (std::size_t i = pass.line_begin[k]; i < pass.line_begin[k + 1]; ++i) seq.push_back(i);
+    mark_mixed_pixels(v, seq, p, sensor.range_sigma, coaxial, mixed);
+  }
+  bool organized = pass.line_count() > 1;
+  for (std::size_t k = 1; organized && k < pass.line_count(); ++k)
+    organized = pass.line_begin[k + 1] - pass.line_begin[k] == pass.line_begin[1] - pass.line_begin[0];
+  if (p.across_lines && organized) {
+    const std::size_t width = pass.line_begin[1] - pass.line_begin[0];
+    for (std::size_t b = 0; b < width; ++b) {
+      seq.clear();
+      for (std::size_t k = 0; k < pass.line_count(); ++k) seq.push_back(pass.line_begin[k] + b);
+      mark_mixed_pixels(v, seq, p, sensor.range_sigma, coaxial, mixed);
+    }
+  }
+  std::size_t count = 0;
+  for (std::size_t i = 0; i < n; ++i)
+    if (mixed[i]) {
+      pass.label[i] = Label::kMixedPixel;
+      ++count;
+    }
+  return count;
+}
+
+std::vector<char> mixed_pixels_in_cloud(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& viewpoint,
+                                        const std::vector<float>& amplitude, double resolution,
+                                        const MixedPixelParams& p, double range_sigma) {
+  const std::size_t n = points.size();
+  std::vector<double> x(n), y(n), z(n), ox(n, viewpoint.x()), oy(n, viewpoint.y()), oz(n, viewpoint.z());
+  std::vector<float> range(n);
+  std::vector<char> usable(n), mixed(n, 0);
+  std::vector<double> az(n), el(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d d = points[i] - viewpoint;
+    x[i] = points[i].x();
+    y[i] = points[i].y();
+    z[i] = points[i].z();
+    range[i] = static_cast<float>(d.norm());
+    usable[i] = std::isfinite(range[i]) && range[i] > 0;
+    az[i] = std::atan2(d.y(), d.x());
+    el[i] = std::atan2(d.z(), std::hypot(d.x(), d.y()));
+  }
+  ReturnsView v{n, x.data(), y.data(), z.data(), ox.data(), oy.data(), oz.data(), range.data(),
+                amplitude.size() == n ? amplitude.data() : nullptr, usable.data()};
+  // Bands of the spherical range image: rows (elevation) sorted by azimuth, columns (azimuth)
+  // sorted by elevation.
+  const auto band = [&](double a) { return static_cast<long>(std::floor(a / resolution)); };
+  std::map<long, std::vector<std::size_t>> rows, cols;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!usable[i]) continue;
+    rows[band(el[i])].push_back(i);
+    cols[band(az[i])].push_back(i);
+  }
+  for (auto& [k, seq] : rows) {
+    std::sort(seq.begin(), seq.end(), [&](std::size_t a, std::size_t b) { return az[a] < az[b]; });
+    mark_mixed_pixels(v, seq, p, range_sigma, true, mixed);
+  }
+  for (auto& [k, seq] : cols) {
+    std::sort(seq.begin(), seq.end(), [&](std::size_t a, std::size_t b) { return el[a] < el[b]; });
+    mark_mixed_pixels(v, seq, p, range_sigma, true, mixed);
+  }
+  return mixed;
+}
+
+namespace {
+class RejectMixedPixelsStage final : public Stage {
+ public:
+  RejectMixedPixelsStage(MixedPixelParams p, const RunContext& ctx) : params_(p), sensor_(ctx.config->sensor) {}
+  void process(Pass& pass, StageReport&) override { reject_mixed_pixels(pass, params_, sensor_); }
+
+ private:
+  MixedPixelParams params_;
+  SensorParams sensor_;
+};
+}  // namespace
+
+StageInfo reject_mixed_pixels_stage_info() {
+  return {"reject_mixed_pixels",
+          "mixed pixels (veil points) between foreground and background: geometry and amplitude mixing",
+          reject_mixed_pixels_schema(),
+          [](const StageConfig& sc, const RunContext& ctx) -> std::unique_ptr<Stage> {
+            const OptionValues& o = sc.options;
+            MixedPixelParams p;
+            p.window = static_cast<int>(o.get_int("window"));
+            p.jump_min = o.get_double("jump_min");
+            p.jump_ratio = o.get_double("jump_ratio");
+            p.range_tolerance = o.get_double("range_tolerance");
+            p.range_tolerance_ratio = o.get_double("range_tolerance_ratio");
+            p.max_angle = o.get_double("max_angle");
+            p.edge_factor = o.get_double("edge_factor");
+            p.amplitude_ratio = o.get_double("amplitude_ratio");
+            p.amplitude_slack = o.get_double("amplitude_slack");
+            p.across_lines = o.get_bool("across_lines");
+            p.max_span = static_cast<int>(o.get_int("max_span"));
+            p.amplitude_saturation = o.get_double("amplitude_saturation");
+            p.one_sided = o.get_bool("one_sided");
+            return std::make_unique<RejectMixedPixelsStage>(p, ctx);
+          }};
+}
+
+}  // namespace pcdp
