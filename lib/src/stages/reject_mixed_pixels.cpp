@@ -4,23 +4,25 @@
 #include <cmath>
 #include <map>
 
+#include "pcdp/errors.hpp"
 #include "pcdp/pass.hpp"
 
 namespace pcdp {
 
 const OptionSchema& reject_mixed_pixels_schema() {
   static const OptionSchema s = {
-      opt_int("window", 4, 1.0, 100.0, "returns", "how far to search on each side for neighbours"),
+      opt_int("window", 8, 1.0, 100.0, "returns", "how far to search on each side for neighbours"),
       opt_double("jump_min", 0.1, 0.0, 100.0, "m", "smallest range step between the two sides that makes an edge"),
       opt_double("jump_ratio", 0.015, 0.0, 10.0, "", "... or this fraction of the near range, if larger"),
-      opt_double("range_tolerance", 0.02, 0.0, 10.0, "m", "a return within this (+ ratio * r + 3 range_sigma) of a surface is on it"),
+      opt_double("range_tolerance", 0.01, 0.0, 10.0, "m", "a return within this (+ ratio * r + 3 range_sigma) of a surface is on it"),
       opt_double("range_tolerance_ratio", 0.002, 0.0, 1.0, "", "relative part of the tolerance"),
-      opt_double("edge_factor", 2.0, 1.0, 100.0, "", "the range must change this many times faster across the return than within each side"),
+      opt_double("edge_factor", 3.0, 1.0, 100.0, "", "a strong edge: the range changes this many times faster across the return than within each side"),
+      opt_double("weak_edge_factor", 1.2, 1.0, 100.0, "", "a weak edge (flagged only where the return is not smooth in the other direction)"),
       opt_double("max_angle", 0.6, 0.0, 1.5708, "rad", "largest angle between the beam and the segment to a neighbour"),
       opt_double("amplitude_ratio", 0.3, 0.0, 10.0, "", "a mixture may be this much brighter than predicted (relative)"),
       opt_double("amplitude_slack", 8.0, 0.0, 255.0, "", "... plus this (amplitude units)"),
       opt_bool("across_lines", true, "also look across scan lines (same beam)"),
-      opt_int("max_span", 3, 2.0, 100.0, "returns", "the two sides' nearest neighbours may be at most this many steps apart"),
+      opt_int("max_span", 6, 2.0, 100.0, "returns", "the two sides' nearest neighbours may be at most this many steps apart"),
       opt_double("amplitude_saturation", 255.0, 0.0, 1e9, "", "amplitudes at or above this are clipped: the mixing test is skipped"),
       opt_bool("one_sided", true, "beside a void, flag returns that break sharply from their one visible surface"),
   };
@@ -67,9 +69,12 @@ double angle_to(const ReturnsView& v, std::size_t i, std::size_t j) {
   return std::acos(std::min(1.0, std::fabs(b.dot(s)) / n));  // 0 .. pi/2
 }
 
-double median_amp(const ReturnsView& v, const Nb& nb) {
+/// A side's amplitude: its two nearest returns if they are one surface, else the nearest alone
+/// (beside a thin post the second one is the background).
+double side_amp(const ReturnsView& v, const Nb& nb, const MixedPixelParams& p) {
   if (!v.amplitude) return NAN;
-  if (nb.count == 1) return v.amplitude[nb.idx[0]];
+  if (nb.count == 1 || std::fabs(nb.r[1] - nb.r[0]) > std::max(p.jump_min, p.jump_ratio * nb.r[0]))
+    return v.amplitude[nb.idx[0]];
   return 0.5 * (v.amplitude[nb.idx[0]] + v.amplitude[nb.idx[1]]);
 }
 }  // namespace
@@ -94,7 +99,7 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
       if (std::fabs(ri - trend) > std::max(tol, 0.5 * std::fabs(step) * own.at[0]) &&
           std::fabs(ri - own.r[0]) > std::max(p.jump_min, p.jump_ratio * own.r[0]) &&
           angle_to(v, i, own.idx[0]) <= p.max_angle)
-        mixed[i] = 1;
+        mixed[i] = 2;
       continue;
     }
     const double ri = v.range[i];
@@ -116,7 +121,9 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
       return std::fabs(nb.r[1] - nb.r[0]) / (nb.at[1] - nb.at[0]);
     };
     const double across = (fr.r[0] - nr.r[0]) / (l.at[0] + r.at[0]);
-    if (across <= p.edge_factor * std::max(rate(l, r), rate(r, l))) continue;
+    const double side_rate = std::max(rate(l, r), rate(r, l));
+    if (across <= p.weak_edge_factor * side_rate) continue;
+    const char strength = across > p.edge_factor * side_rate ? 2 : 1;
     // 2. ...and the return lies strictly between them, on neither surface: not within the
     // tolerance of either side, nor of either side's linear trend (grazing ground changes range
     // quickly between lines, but smoothly, so it continues a trend; a veil continues none).
@@ -132,7 +139,7 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
     // surface makes a wide angle with that side's neighbour, a narrow one with the other's).
     if (std::min(angle_to(v, i, nr.idx[0]), angle_to(v, i, fr.idx[0])) > p.max_angle) continue;
     const double a = v.amplitude ? static_cast<double>(v.amplitude[i]) : NAN;
-    const double p1 = median_amp(v, nr), p2 = median_amp(v, fr);
+    const double p1 = side_amp(v, nr, p), p2 = side_amp(v, fr, p);
     const bool saturated = a >= p.amplitude_saturation || p1 >= p.amplitude_saturation || p2 >= p.amplitude_saturation;
     if (std::isfinite(a) && std::isfinite(p1) && std::isfinite(p2) && p1 + p2 > 0 && !saturated) {  // 4. amplitude mixing
       const double den = p1 * (ri - d1) + p2 * (d2 - ri);
@@ -141,9 +148,23 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
       if (a > pred * (1 + p.amplitude_ratio) + p.amplitude_slack) continue;
       if (coaxial && a < pred * (1 - p.amplitude_ratio) - p.amplitude_slack) continue;
     }
-    mixed[i] = 1;
+    mixed[i] = std::max(mixed[i], strength);
   }
 }
+
+namespace {
+/// The return at `pos` interpolates smoothly between its immediate neighbours (one step on each
+/// side, both usable): it lies on a surface in this direction.
+void mark_smooth(const ReturnsView& v, const std::vector<std::size_t>& seq, const MixedPixelParams& p,
+                 double range_sigma, std::vector<char>& smooth) {
+  for (std::size_t pos = 1; pos + 1 < seq.size(); ++pos) {
+    const std::size_t a = seq[pos - 1], i = seq[pos], b = seq[pos + 1];
+    if (!v.usable[i] || !v.usable[a] || !v.usable[b]) continue;
+    const double tol = p.range_tolerance + p.range_tolerance_ratio * v.range[i] + 3.0 * range_sigma;
+    if (std::fabs(v.range[i] - 0.5 * (v.range[a] + v.range[b])) <= tol) smooth[i] = 1;
+  }
+}
+}  // namespace
 
 std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor) {
   const std::size_t n = pass.size();
@@ -153,11 +174,16 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
   ReturnsView v{n, pass.x.data(), pass.y.data(), pass.z.data(), pass.ox.data(), pass.oy.data(), pass.oz.data(),
                 pass.range_cal.data(), pass.amplitude.data(), usable.data()};
   const bool coaxial = sensor.transceiver_separation <= 0.0;
+  // Candidates along and across lines (2: strong edge, 1: weak edge), and where each return lies
+  // smoothly on a surface in each direction. A weak-edge candidate that is smooth in the other
+  // direction is grazing ground, not a veil.
+  std::vector<char> along(n, 0), across(n, 0), smooth_along(n, 0), smooth_across(n, 0);
   std::vector<std::size_t> seq;
   for (std::size_t k = 0; k < pass.line_count(); ++k) {
     seq.clear();
     for (std::size_t i = pass.line_begin[k]; i < pass.line_begin[k + 1]; ++i) seq.push_back(i);
-    mark_mixed_pixels(v, seq, p, sensor.range_sigma, coaxial, mixed);
+    mark_mixed_pixels(v, seq, p, sensor.range_sigma, coaxial, along);
+    mark_smooth(v, seq, p, sensor.range_sigma, smooth_along);
   }
   bool organized = pass.line_count() > 1;
   for (std::size_t k = 1; organized && k < pass.line_count(); ++k)
@@ -167,9 +193,13 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
     for (std::size_t b = 0; b < width; ++b) {
       seq.clear();
       for (std::size_t k = 0; k < pass.line_count(); ++k) seq.push_back(pass.line_begin[k] + b);
-      mark_mixed_pixels(v, seq, p, sensor.range_sigma, coaxial, mixed);
+      mark_mixed_pixels(v, seq, p, sensor.range_sigma, coaxial, across);
+      mark_smooth(v, seq, p, sensor.range_sigma, smooth_across);
     }
   }
+  for (std::size_t i = 0; i < n; ++i)
+    mixed[i] = along[i] == 2 || across[i] == 2 || (along[i] == 1 && !smooth_across[i]) ||
+               (across[i] == 1 && !smooth_along[i]);
   std::size_t count = 0;
   for (std::size_t i = 0; i < n; ++i)
     if (mixed[i]) {
@@ -208,14 +238,20 @@ std::vector<char> mixed_pixels_in_cloud(const std::vector<Eigen::Vector3d>& poin
     rows[band(el[i])].push_back(i);
     cols[band(az[i])].push_back(i);
   }
+  std::vector<char> along(n, 0), across(n, 0), smooth_along(n, 0), smooth_across(n, 0);
   for (auto& [k, seq] : rows) {
     std::sort(seq.begin(), seq.end(), [&](std::size_t a, std::size_t b) { return az[a] < az[b]; });
-    mark_mixed_pixels(v, seq, p, range_sigma, true, mixed);
+    mark_mixed_pixels(v, seq, p, range_sigma, true, along);
+    mark_smooth(v, seq, p, range_sigma, smooth_along);
   }
   for (auto& [k, seq] : cols) {
     std::sort(seq.begin(), seq.end(), [&](std::size_t a, std::size_t b) { return el[a] < el[b]; });
-    mark_mixed_pixels(v, seq, p, range_sigma, true, mixed);
+    mark_mixed_pixels(v, seq, p, range_sigma, true, across);
+    mark_smooth(v, seq, p, range_sigma, smooth_across);
   }
+  for (std::size_t i = 0; i < n; ++i)
+    mixed[i] = along[i] == 2 || across[i] == 2 || (along[i] == 1 && !smooth_across[i]) ||
+               (across[i] == 1 && !smooth_along[i]);
   return mixed;
 }
 
@@ -245,6 +281,10 @@ StageInfo reject_mixed_pixels_stage_info() {
             p.range_tolerance_ratio = o.get_double("range_tolerance_ratio");
             p.max_angle = o.get_double("max_angle");
             p.edge_factor = o.get_double("edge_factor");
+            p.weak_edge_factor = o.get_double("weak_edge_factor");
+            if (p.weak_edge_factor > p.edge_factor)
+              throw ConfigError(sc.where + ": stage '" + sc.name + "' (reject_mixed_pixels): option 'weak_edge_factor' = " +
+                                format_value(p.weak_edge_factor) + " must not exceed 'edge_factor' = " + format_value(p.edge_factor));
             p.amplitude_ratio = o.get_double("amplitude_ratio");
             p.amplitude_slack = o.get_double("amplitude_slack");
             p.across_lines = o.get_bool("across_lines");

@@ -3,10 +3,12 @@
 //
 // For each kept return, along its scan line (bearing) and across lines (nod), with the nearest
 // kept neighbours on each side:
-//  1. an edge: the nearest neighbours on the two sides differ by more than jump_min (or jump_ratio
-//     of the range), and the range changes across the return more than edge_factor times faster
-//     per step than within either side (grazing ground changes range in comparable steps
-//     everywhere; a veil hangs between two sides that change slowly);
+//  1. an edge: the nearest neighbours on the two sides (at most max_span steps apart) differ by
+//     more than jump_min (or jump_ratio of the range), and the range changes across the return
+//     faster per step than within either side: more than edge_factor times (a strong edge), or
+//     more than weak_edge_factor times (a weak edge, which counts only where the return does not
+//     lie smoothly between its neighbours in the other scan direction: grazing ground changes range
+//     in comparable steps and is smooth across; a veil hangs between two slowly changing sides);
 //  2. the return fits neither surface alone: its range lies strictly between the two sides, farther
 //     than the tolerance (range_tolerance + range_tolerance_ratio * r + 3 sensor.range_sigma) from
 //     each side and from each side's linear trend;
@@ -38,19 +40,20 @@ namespace pcdp {
 struct Pass;
 
 struct MixedPixelParams {
-  int window = 4;                    ///< returns searched on each side
+  int window = 8;                    ///< returns searched on each side
   double jump_min = 0.1;             ///< m
   double jump_ratio = 0.015;
-  double range_tolerance = 0.02;     ///< m
+  double range_tolerance = 0.01;     ///< m
   double range_tolerance_ratio = 0.002;
   double max_angle = 0.6;            ///< rad (34 deg)
-  double edge_factor = 2.0;          ///< per-step range change across the return vs within each side
+  double edge_factor = 3.0;          ///< strong edge: per-step change across the return vs within each side
+  double weak_edge_factor = 1.2;     ///< weak edge: flagged only if not smooth in the other direction
   double amplitude_ratio = 0.3;
   double amplitude_slack = 8.0;      ///< amplitude units
   bool across_lines = true;
   double amplitude_saturation = 255.0;  ///< clipped amplitudes say nothing about the mixture
   bool one_sided = true;
-  int max_span = 3;                  ///< steps between the two sides' nearest neighbours
+  int max_span = 6;                  ///< steps between the two sides' nearest neighbours
 };
 
 const OptionSchema& reject_mixed_pixels_schema();
@@ -65,8 +68,8 @@ struct ReturnsView {
   const char* usable = nullptr;                              ///< candidate and neighbour (kept)
 };
 
-/// Marks (mixed[i] = 1) the mixed pixels among the returns of one sequence of indices in scan
-/// order (a scan line, or one beam across lines).
+/// Marks the mixed-pixel candidates among the returns of one sequence of indices in scan order
+/// (a scan line, or one beam across lines): mixed[i] = 2 at a strong edge, 1 at a weak one.
 void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq, const MixedPixelParams& p,
                        double range_sigma, bool coaxial, std::vector<char>& mixed);
 
