@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "pcdp/sim/bench_scenes.hpp"
+#include "quality.hpp"
 #include "pcdp/pass.hpp"
 #include "pcdp/stages/register.hpp"
 #include "pcdp/stages/reject_occlusion.hpp"
@@ -26,34 +27,7 @@ struct Record {
   float amplitude;
   bool ours;
 };
-struct Score {
-  std::string method, params;
-  double precision = 0, recall = 0, f1 = 0, valid_rejected = 0;
-  std::uint64_t tp = 0, fp = 0, positives = 0, valid = 0;
-};
-
-Score score(const std::vector<Record>& recs, const std::vector<char>& rejected, std::string method, std::string params) {
-  Score s{std::move(method), std::move(params)};
-  for (std::size_t i = 0; i < recs.size(); ++i) {
-    const bool pos = recs[i].truth == Label::kOcclusion, valid = recs[i].truth == Label::kKept;
-    s.positives += pos;
-    s.valid += valid;
-    if (!rejected[i]) continue;
-    s.tp += pos;
-    s.fp += valid;
-  }
-  s.precision = s.tp + s.fp ? static_cast<double>(s.tp) / static_cast<double>(s.tp + s.fp) : 0.0;
-  s.recall = s.positives ? static_cast<double>(s.tp) / static_cast<double>(s.positives) : 0.0;
-  s.f1 = s.precision + s.recall > 0 ? 2 * s.precision * s.recall / (s.precision + s.recall) : 0.0;
-  s.valid_rejected = s.valid ? static_cast<double>(s.fp) / static_cast<double>(s.valid) : 0.0;
-  return s;
-}
-
-void print(const Score& s) {
-  std::printf("  %-28s %-22s %9.3f %7.3f %7.3f %12.3f %%  (%llu/%llu)\n", s.method.c_str(), s.params.c_str(), s.precision,
-              s.recall, s.f1, 100.0 * s.valid_rejected, static_cast<unsigned long long>(s.tp),
-              static_cast<unsigned long long>(s.positives));
-}
+using bench::Score;
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -93,16 +67,21 @@ int main(int argc, char** argv) {
     std::printf("\nsetting %c (%s, s-q = %.0f mm, alpha = %.0f mrad), %d seeds, %zu returns reaching the filter\n", which,
                 st.sim.scanner.mirror ? "mirror transceiver angle" : "fixed transceiver angle",
                 st.sim.scanner.transceiver_separation * 1000, st.sim.scanner.beam_divergence * 1000, seeds, n);
-    std::printf("  %-28s %-22s %9s %7s %7s %14s\n", "method", "best setting", "precision", "recall", "F1", "valid rejected");
+    bench::print_header();
 
+    std::vector<Label> truth(n);
+    for (std::size_t i = 0; i < n; ++i) truth[i] = recs[i].truth;
+    const auto score = [&](const std::vector<char>& rej, std::string m, std::string prm) {
+      return bench::score(truth, rej, Label::kOcclusion, std::move(m), std::move(prm));
+    };
     std::vector<char> rej(n);
     for (std::size_t i = 0; i < n; ++i) rej[i] = recs[i].ours;
-    const Score ours = score(recs, rej, "reject_occlusion (defaults)", "-");
+    const Score ours = score(rej, "reject_occlusion (defaults)", "-");
 
     Score best_thr;
     for (int t = 1; t <= 80; ++t) {
       for (std::size_t i = 0; i < n; ++i) rej[i] = recs[i].amplitude < static_cast<float>(t);
-      const Score s = score(recs, rej, "amplitude threshold", "amplitude < " + std::to_string(t));
+      const Score s = score(rej, "amplitude threshold", "amplitude < " + std::to_string(t));
       if (s.f1 > best_thr.f1) best_thr = s;
     }
     Score best_sor;
@@ -120,13 +99,13 @@ int main(int argc, char** argv) {
         }
         char buf[64];
         std::snprintf(buf, sizeof buf, "k = %d, std = %.2f", k, m);
-        const Score s = score(recs, rej, "PCL StatisticalOutlierRemoval", buf);
+        const Score s = score(rej, "PCL StatisticalOutlierRemoval", buf);
         if (s.f1 > best_sor.f1) best_sor = s;
       }
     }
-    print(ours);
-    print(best_thr);
-    print(best_sor);
+    bench::print(ours);
+    bench::print(best_thr);
+    bench::print(best_sor);
     const bool met = ours.recall >= 0.95 && ours.valid_rejected <= 0.005 && ours.f1 > best_thr.f1 && ours.f1 > best_sor.f1;
     all_met = all_met && met;
     std::printf("  low-amplitude false ranges rejected by reject_occlusion: %llu/%llu (%.3f)\n",

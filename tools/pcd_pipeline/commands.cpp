@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -16,6 +17,7 @@
 #include "pcdp/nod_plan.hpp"
 #include "pcdp/io/svg_plot.hpp"
 #include "pcdp/occlusion_model.hpp"
+#include "pcdp/stages/reject_mixed_pixels.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
 #include "pcdp/stage.hpp"
 
@@ -214,6 +216,65 @@ int cmd_amplitude_model(const EdgeParams& e, const AmplitudeModelArgs& a) {
     io::write_file_atomic(a.svg_prefix + "_theta.svg", io::svg_line_plot(p2));
     std::printf("written: %s_profile.svg, %s_theta.svg\n", a.svg_prefix.c_str(), a.svg_prefix.c_str());
   }
+  return 0;
+}
+
+int cmd_clean_cloud(const CleanCloudArgs& a) {
+  if (a.output.empty()) throw ConfigError("clean-cloud: --output is required");
+  if (!(a.resolution > 0.0 && a.resolution < 0.5)) throw ConfigError("clean-cloud: --resolution must be in (0, 0.5) rad");
+  io::PcdTable t = io::read_pcd(a.input);
+  const int ix = t.header.field_index("x"), iy = t.header.field_index("y"), iz = t.header.field_index("z");
+  if (ix < 0 || iy < 0 || iz < 0) throw InputError(a.input + ": needs fields x, y, z");
+  Eigen::Vector3d vp(t.header.viewpoint[0], t.header.viewpoint[1], t.header.viewpoint[2]);
+  if (!a.viewpoint.empty()) {
+    double v[3];
+    if (std::sscanf(a.viewpoint.c_str(), "%lf,%lf,%lf", &v[0], &v[1], &v[2]) != 3)
+      throw ConfigError("clean-cloud: --viewpoint '" + a.viewpoint + "' must be x,y,z in metres");
+    vp = {v[0], v[1], v[2]};
+  }
+  const std::size_t n = t.header.points;
+  const auto col = [&](int k, std::size_t i) {
+    const auto& f = t.header.fields[static_cast<std::size_t>(k)];
+    return io::field_value(f, t.columns[static_cast<std::size_t>(k)].data() + i * f.bytes());
+  };
+  std::vector<Eigen::Vector3d> pts(n);
+  for (std::size_t i = 0; i < n; ++i) pts[i] = {col(ix, i), col(iy, i), col(iz, i)};
+  std::vector<float> amp;
+  for (const char* name : {"intensity", "amplitude"}) {
+    const int k = t.header.field_index(name);
+    if (k < 0 || !amp.empty()) continue;
+    amp.resize(n);
+    for (std::size_t i = 0; i < n; ++i) amp[i] = static_cast<float>(col(k, i));
+  }
+  const std::vector<char> mixed = mixed_pixels_in_cloud(pts, vp, amp, a.resolution, MixedPixelParams{}, 0.0053);
+  // Write kept (and removed) points with every field of the input, via temporary names.
+  const auto write = [&](const std::string& path, bool want_mixed) {
+    const std::string tmp = path + ".tmp-clean";
+    std::uint64_t count = 0;
+    {
+      io::PcdWriter w(tmp, t.header.fields);
+      std::vector<std::uint8_t> row(w.point_bytes());
+      for (std::size_t i = 0; i < n; ++i) {
+        if ((mixed[i] != 0) != want_mixed) continue;
+        std::size_t off = 0;
+        for (std::size_t f = 0; f < t.header.fields.size(); ++f) {
+          const std::size_t b = t.header.fields[f].bytes();
+          std::memcpy(row.data() + off, t.columns[f].data() + i * b, b);
+          off += b;
+        }
+        w.append(row.data(), 1);
+        ++count;
+      }
+      w.close();
+    }
+    if (std::rename(tmp.c_str(), path.c_str()) != 0) throw std::runtime_error(path + ": cannot rename into place");
+    return count;
+  };
+  const std::uint64_t kept = write(a.output, false);
+  const std::uint64_t removed = a.removed.empty() ? n - kept : write(a.removed, true);
+  if (!a.quiet)
+    std::printf("%s: %zu points, %llu mixed pixels removed (viewpoint %g %g %g, resolution %g rad) -> %s\n", a.input.c_str(), n,
+                static_cast<unsigned long long>(removed), vp.x(), vp.y(), vp.z(), a.resolution, a.output.c_str());
   return 0;
 }
 

@@ -31,6 +31,12 @@ struct AmplitudeModelArgs {
   std::string profile_csv, theta_csv, svg_prefix;
 };
 int cmd_amplitude_model(const EdgeParams& e, const AmplitudeModelArgs& a);
+struct CleanCloudArgs {
+  std::string input, output, removed, viewpoint;
+  double resolution = 0.0087;  ///< rad, about the scan's angular step
+  bool quiet = false;
+};
+int cmd_clean_cloud(const CleanCloudArgs& a);
 int cmd_simulate(const std::string& scene, const std::string& output_dir, bool quiet);
 
 }  // namespace pcdp::cli

@@ -74,6 +74,15 @@ int main(int argc, char** argv) {
   amp->add_option("--theta-csv", am.theta_csv, "write the minimum against theta as CSV");
   amp->add_option("--svg", am.svg_prefix, "draw PREFIX_profile.svg and PREFIX_theta.svg");
 
+  cli::CleanCloudArgs cc;
+  CLI::App* clean = app.add_subcommand("clean-cloud", "remove mixed pixels from a Cartesian cloud seen from one viewpoint");
+  clean->add_option("input", cc.input, "PCD with x y z (intensity or amplitude used if present)")->required();
+  clean->add_option("-o,--output", cc.output, "cleaned cloud (all input fields)")->required();
+  clean->add_option("--removed", cc.removed, "also write the removed points here");
+  clean->add_option("--viewpoint", cc.viewpoint, "sensor position x,y,z in the cloud's frame (default: the PCD VIEWPOINT)");
+  clean->add_option("--resolution", cc.resolution, "angular step of the scan, rad")->capture_default_str();
+  clean->add_flag("-q,--quiet", cc.quiet, "print nothing but errors");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -87,6 +96,7 @@ int main(int argc, char** argv) {
     if (*stages) return cli::cmd_stages();
     if (*describe) return cli::cmd_describe(describe_what);
     if (*evaluate) return cli::cmd_evaluate(ev_truth, ev_run, ev_json, ev_quiet);
+    if (*clean) return cli::cmd_clean_cloud(cc);
     if (*amp) return cli::cmd_amplitude_model(edge, am);
     if (*plan) return cli::cmd_plan_nod(np, np_csv);
     if (*simulate) return cli::cmd_simulate(scene, sim_out, sim_quiet);

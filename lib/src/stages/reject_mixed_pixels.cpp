@@ -16,9 +16,9 @@ const OptionSchema& reject_mixed_pixels_schema() {
       opt_double("jump_ratio", 0.015, 0.0, 10.0, "", "... or this fraction of the near range, if larger"),
       opt_double("range_tolerance", 0.01, 0.0, 10.0, "m", "a return within this (+ ratio * r + 3 range_sigma) of a surface is on it"),
       opt_double("range_tolerance_ratio", 0.002, 0.0, 1.0, "", "relative part of the tolerance"),
-      opt_double("edge_factor", 3.0, 1.0, 100.0, "", "a strong edge: the range changes this many times faster across the return than within each side"),
-      opt_double("weak_edge_factor", 1.2, 1.0, 100.0, "", "a weak edge (flagged only where the return is not smooth in the other direction)"),
-      opt_double("max_angle", 0.6, 0.0, 1.5708, "rad", "largest angle between the beam and the segment to a neighbour"),
+      opt_double("edge_factor", 1.5, 0.1, 100.0, "", "a strong edge: the range changes this many times faster across the return than within each side"),
+      opt_double("weak_edge_factor", 0.8, 0.1, 100.0, "", "a weak edge (flagged only where the return is not smooth in the other direction)"),
+      opt_double("max_angle", 0.9, 0.0, 1.5708, "rad", "largest angle between the beam and the segment to a neighbour"),
       opt_double("amplitude_ratio", 0.3, 0.0, 10.0, "", "a mixture may be this much brighter than predicted (relative)"),
       opt_double("amplitude_slack", 8.0, 0.0, 255.0, "", "... plus this (amplitude units)"),
       opt_bool("across_lines", true, "also look across scan lines (same beam)"),
@@ -31,24 +31,32 @@ const OptionSchema& reject_mixed_pixels_schema() {
 
 namespace {
 struct Nb {
-  int count = 0;
+  int count = 0;  ///< up to 2 neighbours used for the tests
   std::size_t idx[2] = {0, 0};
   double r[2] = {0, 0};
   double at[2] = {0, 0};
   double predicted = 0;
+  double r3 = 0, at3 = 0;  ///< a third neighbour, for the side's acceleration
+  bool has3 = false;
 };
 
 Nb neighbours(const ReturnsView& v, const std::vector<std::size_t>& seq, std::size_t pos, int dir, const MixedPixelParams& p) {
   Nb nb;
-  for (int step = 1; step <= p.window && nb.count < 2; ++step) {
+  for (int step = 1; step <= p.window && !nb.has3; ++step) {
     const long q = static_cast<long>(pos) + dir * step;
     if (q < 0 || q >= static_cast<long>(seq.size())) break;
     const std::size_t k = seq[static_cast<std::size_t>(q)];
     if (!v.usable[k]) continue;
-    nb.idx[nb.count] = k;
-    nb.r[nb.count] = v.range[k];
-    nb.at[nb.count] = step;
-    ++nb.count;
+    if (nb.count < 2) {
+      nb.idx[nb.count] = k;
+      nb.r[nb.count] = v.range[k];
+      nb.at[nb.count] = step;
+      ++nb.count;
+    } else {
+      nb.r3 = v.range[k];
+      nb.at3 = step;
+      nb.has3 = true;
+    }
   }
   if (nb.count == 0) return nb;
   nb.predicted = nb.r[0];
@@ -115,10 +123,15 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
     // comparable steps everywhere; a veil hangs between two sides that change slowly).
     // A side's own rate of change, from its two nearest returns, unless the second one lies back
     // on the other side's surface (a thin post one return wide: its "side" is post, background).
+    // The rate is scaled by the side's own acceleration (ratio of its last two steps, from three
+    // returns, clamped to [1, 3]): ground seen at the ends of a scan line grows hyperbolically.
     const auto rate = [&](const Nb& nb, const Nb& other) {
       if (nb.count < 2) return 0.0;
       if (std::fabs(nb.r[1] - other.r[0]) < std::fabs(nb.r[1] - nb.r[0])) return 0.0;
-      return std::fabs(nb.r[1] - nb.r[0]) / (nb.at[1] - nb.at[0]);
+      const double s1 = std::fabs(nb.r[1] - nb.r[0]) / (nb.at[1] - nb.at[0]);
+      if (!nb.has3) return s1;
+      const double s2 = std::fabs(nb.r3 - nb.r[1]) / (nb.at3 - nb.at[1]);
+      return s2 > 1e-9 ? s1 * std::clamp(s1 / s2, 1.0, 3.0) : s1;
     };
     const double across = (fr.r[0] - nr.r[0]) / (l.at[0] + r.at[0]);
     const double side_rate = std::max(rate(l, r), rate(r, l));
@@ -131,7 +144,13 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
     const auto on_trend = [&](const Nb& nb) {
       if (nb.count < 2) return false;
       const double extrap = nb.r[0] - (nb.r[1] - nb.r[0]) / (nb.at[1] - nb.at[0]) * nb.at[0];
-      return std::fabs(ri - extrap) <= tol;
+      if (std::fabs(ri - extrap) <= tol) return true;
+      if (!nb.has3) return false;
+      // Quadratic through the side's three returns (at -at0, -at1, -at3), evaluated at 0.
+      const double x0 = -nb.at[0], x1 = -nb.at[1], x2 = -nb.at3;
+      const double quad = nb.r[0] * (x1 * x2) / ((x0 - x1) * (x0 - x2)) + nb.r[1] * (x0 * x2) / ((x1 - x0) * (x1 - x2)) +
+                          nb.r3 * (x0 * x1) / ((x2 - x0) * (x2 - x1));
+      return std::fabs(ri - quad) <= tol;
     };
     if (on_trend(l) || on_trend(r)) continue;
     const double d1 = nr.predicted, d2 = fr.predicted;
@@ -153,15 +172,17 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
 }
 
 namespace {
-/// The return at `pos` interpolates smoothly between its immediate neighbours (one step on each
-/// side, both usable): it lies on a surface in this direction.
+/// Whether the return at `pos` lies smoothly between its immediate neighbours in this direction:
+/// 1 smooth, 2 rough, 0 unknown (a neighbour is missing).
 void mark_smooth(const ReturnsView& v, const std::vector<std::size_t>& seq, const MixedPixelParams& p,
                  double range_sigma, std::vector<char>& smooth) {
   for (std::size_t pos = 1; pos + 1 < seq.size(); ++pos) {
     const std::size_t a = seq[pos - 1], i = seq[pos], b = seq[pos + 1];
     if (!v.usable[i] || !v.usable[a] || !v.usable[b]) continue;
     const double tol = p.range_tolerance + p.range_tolerance_ratio * v.range[i] + 3.0 * range_sigma;
-    if (std::fabs(v.range[i] - 0.5 * (v.range[a] + v.range[b])) <= tol) smooth[i] = 1;
+    // Curved surfaces (ground at grazing incidence) bend by a few per cent of the local step.
+    const double allow = tol + 0.05 * std::fabs(v.range[b] - v.range[a]);
+    smooth[i] = std::fabs(v.range[i] - 0.5 * (v.range[a] + v.range[b])) <= allow ? 1 : 2;
   }
 }
 }  // namespace
@@ -198,8 +219,8 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
     }
   }
   for (std::size_t i = 0; i < n; ++i)
-    mixed[i] = along[i] == 2 || across[i] == 2 || (along[i] == 1 && !smooth_across[i]) ||
-               (across[i] == 1 && !smooth_along[i]);
+    mixed[i] = along[i] == 2 || across[i] == 2 || (along[i] == 1 && smooth_across[i] == 2) ||
+               (across[i] == 1 && smooth_along[i] == 2);
   std::size_t count = 0;
   for (std::size_t i = 0; i < n; ++i)
     if (mixed[i]) {
@@ -231,7 +252,7 @@ std::vector<char> mixed_pixels_in_cloud(const std::vector<Eigen::Vector3d>& poin
                 amplitude.size() == n ? amplitude.data() : nullptr, usable.data()};
   // Bands of the spherical range image: rows (elevation) sorted by azimuth, columns (azimuth)
   // sorted by elevation.
-  const auto band = [&](double a) { return static_cast<long>(std::floor(a / resolution)); };
+  const auto band = [&](double a) { return static_cast<long>(std::floor(a / resolution + 0.5)); };
   std::map<long, std::vector<std::size_t>> rows, cols;
   for (std::size_t i = 0; i < n; ++i) {
     if (!usable[i]) continue;
@@ -250,8 +271,8 @@ std::vector<char> mixed_pixels_in_cloud(const std::vector<Eigen::Vector3d>& poin
     mark_smooth(v, seq, p, range_sigma, smooth_across);
   }
   for (std::size_t i = 0; i < n; ++i)
-    mixed[i] = along[i] == 2 || across[i] == 2 || (along[i] == 1 && !smooth_across[i]) ||
-               (across[i] == 1 && !smooth_along[i]);
+    mixed[i] = along[i] == 2 || across[i] == 2 || (along[i] == 1 && smooth_across[i] == 2) ||
+               (across[i] == 1 && smooth_along[i] == 2);
   return mixed;
 }
 

@@ -45,9 +45,9 @@ struct MixedPixelParams {
   double jump_ratio = 0.015;
   double range_tolerance = 0.01;     ///< m
   double range_tolerance_ratio = 0.002;
-  double max_angle = 0.6;            ///< rad (34 deg)
-  double edge_factor = 3.0;          ///< strong edge: per-step change across the return vs within each side
-  double weak_edge_factor = 1.2;     ///< weak edge: flagged only if not smooth in the other direction
+  double max_angle = 0.9;            ///< rad (52 deg)
+  double edge_factor = 1.5;          ///< strong edge: per-step change across the return vs within each side
+  double weak_edge_factor = 0.8;     ///< weak edge: flagged only if not smooth in the other direction
   double amplitude_ratio = 0.3;
   double amplitude_slack = 8.0;      ///< amplitude units
   bool across_lines = true;
