@@ -385,3 +385,22 @@ TEST(Cli, AmplitudeModelPrintsTheProfileAndDrawsIt) {
   EXPECT_EQ(res.exit_code, 2);
   EXPECT_NE(res.err.find("need 0 < d1 < d2"), std::string::npos);
 }
+
+TEST(Cli, CleanCloudOnARealPcdKeepsEveryFieldAndAccountsForEveryPoint) {
+  const std::string in = std::string(PCDP_SHARED_DIR) + "/datasets/pcl_table_scene_lms400/table_scene_lms400_downsampled.pcd";
+  const std::string dir = test::fresh_dir();
+  const auto res = run_cli({"clean-cloud", in, "-o", dir + "/kept.pcd", "--removed", dir + "/removed.pcd", "--resolution", "0.005"});
+  ASSERT_EQ(res.exit_code, 0) << res.err;
+  const io::PcdHeader src = io::read_pcd_header(in), kept = io::read_pcd_header(dir + "/kept.pcd"),
+                      removed = io::read_pcd_header(dir + "/removed.pcd");
+  EXPECT_EQ(kept.points + removed.points, src.points);
+  EXPECT_GT(removed.points, 0u);
+  EXPECT_LT(removed.points, src.points / 10);
+  ASSERT_EQ(kept.fields.size(), src.fields.size());
+  for (std::size_t i = 0; i < src.fields.size(); ++i) EXPECT_EQ(kept.fields[i].name, src.fields[i].name);
+  // Bad input: a missing file and a bad viewpoint.
+  EXPECT_EQ(run_cli({"clean-cloud", dir + "/nope.pcd", "-o", dir + "/x.pcd"}).exit_code, 3);
+  const auto bad = run_cli({"clean-cloud", in, "-o", dir + "/x.pcd", "--viewpoint", "1,2"});
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("--viewpoint '1,2' must be x,y,z"), std::string::npos);
+}

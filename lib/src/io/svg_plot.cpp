@@ -51,11 +51,27 @@ std::string svg_line_plot(const PlotSpec& spec, int width, int height) {
   }
   if (!(x1 > x0)) x1 = x0 + 1;
   if (!(y1 > y0)) y1 = y0 + 1;
-  y0 = std::min(y0, 0.0);
+  if (!spec.equal_axes) y0 = std::min(y0, 0.0);
+  const int L0 = 80, R0 = 200, T0 = 50, B0 = 60;
+  if (spec.equal_axes) {  // grow the narrower range so that one metre is as long on both axes
+    const double pw0 = width - L0 - R0, ph0 = height - T0 - B0;
+    const double sx = (x1 - x0) / pw0, sy = (y1 - y0) / ph0;
+    if (sx > sy) {
+      const double c = 0.5 * (y0 + y1), h = 0.5 * sx * ph0;
+      y0 = c - h;
+      y1 = c + h;
+    } else {
+      const double c = 0.5 * (x0 + x1), h = 0.5 * sy * pw0;
+      x0 = c - h;
+      x1 = c + h;
+    }
+  }
   const double ys = nice_step(y1 - y0, 6), xs = nice_step(x1 - x0, 8);
-  y1 = std::ceil(y1 / ys) * ys;
-  y0 = std::floor(y0 / ys) * ys;
-  const int L = 80, R = 200, T = 50, B = 60;
+  if (!spec.equal_axes) {
+    y1 = std::ceil(y1 / ys) * ys;
+    y0 = std::floor(y0 / ys) * ys;
+  }
+  const int L = L0, R = R0, T = T0, B = B0;
   const double pw = width - L - R, ph = height - T - B;
   const auto px = [&](double x) { return L + (x - x0) / (x1 - x0) * pw; };
   const auto py = [&](double y) { return T + (1.0 - (y - y0) / (y1 - y0)) * ph; };
@@ -64,7 +80,7 @@ std::string svg_line_plot(const PlotSpec& spec, int width, int height) {
   o << "<svg xmlns='http://www.w3.org/2000/svg' width='" << width << "' height='" << height
     << "' font-family='sans-serif' font-size='13'>\n<rect width='100%' height='100%' fill='white'/>\n";
   o << "<text x='" << width / 2 << "' y='28' text-anchor='middle' font-size='16'>" << esc(spec.title) << "</text>\n";
-  for (double y = y0; y <= y1 + 1e-9 * ys; y += ys) {
+  for (double y = std::ceil(y0 / ys) * ys; y <= y1 + 1e-9 * ys; y += ys) {
     o << "<line x1='" << L << "' x2='" << L + pw << "' y1='" << py(y) << "' y2='" << py(y) << "' stroke='#e5e5e5'/>";
     o << "<text x='" << L - 8 << "' y='" << py(y) + 4 << "' text-anchor='end'>" << num(y) << "</text>\n";
   }
@@ -78,11 +94,22 @@ std::string svg_line_plot(const PlotSpec& spec, int width, int height) {
     << "</text>\n";
   int row = 0;
   for (const auto& s : spec.series) {
-    o << "<polyline fill='none' stroke='" << s.color << "' stroke-width='2'" << (s.dashed ? " stroke-dasharray='6,4'" : "")
-      << " points='";
-    for (const auto& [x, y] : s.points)
-      if (std::isfinite(x) && std::isfinite(y)) o << px(x) << ',' << py(y) << ' ';
-    o << "'/>\n";
+    if (s.markers) {
+      o << "<g fill='" << s.color << "'>";
+      char b[96];
+      for (const auto& [x, y] : s.points)
+        if (std::isfinite(x) && std::isfinite(y)) {
+          std::snprintf(b, sizeof b, "<circle cx='%.1f' cy='%.1f' r='%.1f'/>", px(x), py(y), s.radius);
+          o << b;
+        }
+      o << "</g>\n";
+    } else {
+      o << "<polyline fill='none' stroke='" << s.color << "' stroke-width='2'" << (s.dashed ? " stroke-dasharray='6,4'" : "")
+        << " points='";
+      for (const auto& [x, y] : s.points)
+        if (std::isfinite(x) && std::isfinite(y)) o << px(x) << ',' << py(y) << ' ';
+      o << "'/>\n";
+    }
     const double ly = T + 10 + 22 * row++;
     o << "<line x1='" << L + pw + 12 << "' x2='" << L + pw + 40 << "' y1='" << ly << "' y2='" << ly << "' stroke='" << s.color
       << "' stroke-width='2'" << (s.dashed ? " stroke-dasharray='6,4'" : "") << "/>";

@@ -14,10 +14,13 @@ struct PlotSeries {
   std::vector<std::pair<double, double>> points;
   std::string color = "#1f77b4";
   bool dashed = false;
+  bool markers = false;  ///< draw points (scatter) instead of a line
+  double radius = 1.2;
 };
 
 struct PlotSpec {
   std::string title, xlabel, ylabel;
+  bool equal_axes = false;  ///< same scale on x and y (maps, top views)
   std::vector<PlotSeries> series;
   std::optional<double> hline;  ///< e.g. the minimum detectable amplitude
   std::string hline_label;
