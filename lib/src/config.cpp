@@ -51,6 +51,10 @@ const OptionSchema& sensor_schema() {
                    "nod-encoder resolution (0.072 deg in Broten & Collier)"),
         opt_double("encoder_latency", 0.0, -1.0, 1.0, "s",
                    "a line's encoder reading describes the nod at its last return's stamp minus this"),
+        opt_double("encoder_latency_sigma", 0.0, 0.0, 1.0, "s",
+                   "1-sigma uncertainty of encoder_latency (times the nod rate, a nod error)"),
+        opt_double("bearing_resolution", 0.0, 0.0, 0.1, "rad",
+                   "quantization of the in-plane beam angle (uniform: sigma = resolution / sqrt 12)"),
     };
     v[1].min_exclusive = true;   // range_max > 0
     v[8].min_exclusive = true;
@@ -403,6 +407,8 @@ PipelineConfig build(YAML::Node root, Context& ctx, const LoadOptions& opts) {
   s.range_b = sensor.get_double("range_calibration.b");
   s.encoder_resolution = sensor.get_double("encoder_resolution");
   s.encoder_latency = sensor.get_double("encoder_latency");
+  s.encoder_latency_sigma = sensor.get_double("encoder_latency_sigma");
+  s.bearing_resolution = sensor.get_double("bearing_resolution");
   if (s.range_min >= s.range_max)
     fail(ctx.where("sensor.range_max", root["sensor"]["range_max"]),
          "sensor: range_min (" + format_value(s.range_min) + " m) must be less than range_max (" +

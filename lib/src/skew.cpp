@@ -13,10 +13,8 @@ EncoderTrack::EncoderTrack(std::vector<double> stamps, std::vector<double> angle
   for (double& t : t_) t -= latency;
 }
 
-double EncoderTrack::angle_at(double stamp, std::size_t& hint) const {
+std::size_t EncoderTrack::bracket(double stamp, std::size_t hint) const {
   const std::size_t n = t_.size();
-  if (n == 0) return 0.0;
-  if (n == 1) return a_[0];
   std::size_t k;
   if (hint + 1 < n && stamp >= t_[hint] && stamp <= t_[hint + 1]) {
     k = hint;
@@ -27,9 +25,22 @@ double EncoderTrack::angle_at(double stamp, std::size_t& hint) const {
     const std::size_t u = static_cast<std::size_t>(it - t_.begin());
     k = u == 0 ? 0 : std::min(u - 1, n - 2);  // before the first / after the last: extrapolate
   }
-  hint = k;
+  return k;
+}
+
+double EncoderTrack::angle_at(double stamp, std::size_t& hint) const {
+  const std::size_t n = t_.size();
+  if (n == 0) return 0.0;
+  if (n == 1) return a_[0];
+  const std::size_t k = hint = bracket(stamp, hint);
   const double s = (stamp - t_[k]) / (t_[k + 1] - t_[k]);
   return a_[k] + s * (a_[k + 1] - a_[k]);
+}
+
+double EncoderTrack::rate_at(double stamp, std::size_t& hint) const {
+  if (t_.size() < 2) return 0.0;
+  const std::size_t k = hint = bracket(stamp, hint);
+  return (a_[k + 1] - a_[k]) / (t_[k + 1] - t_[k]);
 }
 
 EncoderTrack encoder_track(const Pass& pass, double latency) {

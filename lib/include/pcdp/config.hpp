@@ -28,6 +28,8 @@ struct SensorParams {
   double range_b = 0.0;
   double encoder_resolution = 0.0012566;  ///< 0.072 degrees (Broten & Collier 6.3.3)
   double encoder_latency = 0.0;
+  double encoder_latency_sigma = 0.0;  ///< s, 1-sigma uncertainty of the latency
+  double bearing_resolution = 0.0;     ///< rad, quantization of the in-plane beam angle
 
   double calibrated_range(double measured) const { return range_k * measured + range_b; }
 };

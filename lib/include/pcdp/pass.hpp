@@ -41,6 +41,8 @@ struct Pass {
   std::vector<float> nod_at_return;///< nod angle at the return's own stamp (skew-corrected)
   std::vector<double> x, y, z;     ///< map frame, NaN where there is no point
   std::vector<double> ox, oy, oz;  ///< sensor (nod-axis) origin in the map frame at the return
+  /// Covariance of (x, y, z), 6 per return: xx, xy, xz, yy, yz, zz (m^2); empty when not computed.
+  std::vector<float> cov;
 
   std::size_t size() const { return range.size(); }
   std::size_t line_count() const { return line_begin.empty() ? 0 : line_begin.size() - 1; }

@@ -32,9 +32,12 @@ class EncoderTrack {
   /// The nod angle at `stamp`. `hint` carries the last bracket between calls (O(1) for sorted
   /// queries). With a single reading, that reading (no rate can be estimated).
   double angle_at(double stamp, std::size_t& hint) const;
+  /// The local nod rate (rad/s) at `stamp`: the slope of the bracketing readings (0 with one).
+  double rate_at(double stamp, std::size_t& hint) const;
   std::size_t size() const { return t_.size(); }
 
  private:
+  std::size_t bracket(double stamp, std::size_t hint) const;
   std::vector<double> t_, a_;
 };
 

@@ -1,6 +1,8 @@
 #include "pcdp/io/outputs.hpp"
 
+#include <cmath>
 #include <cstring>
+#include <limits>
 
 #include "pcdp/errors.hpp"
 #include "pcdp/pass.hpp"
@@ -81,7 +83,15 @@ void ReturnsWriter::close() {
   writer_->close();
 }
 
-CloudWriter::CloudWriter(const std::string& path) : writer_(path, base_fields(false)) {}
+namespace {
+std::vector<PcdField> cloud_fields() {
+  auto f = base_fields(false);
+  for (const char* n : {"cov_xx", "cov_xy", "cov_xz", "cov_yy", "cov_yz", "cov_zz", "sigma_h"}) f.push_back({n, 'F', 4, 1});
+  return f;
+}
+}  // namespace
+
+CloudWriter::CloudWriter(const std::string& path) : writer_(path, cloud_fields()) {}
 
 void CloudWriter::append(const Pass& pass) {
   const std::size_t pb = writer_.point_bytes();
@@ -93,7 +103,17 @@ void CloudWriter::append(const Pass& pass) {
     rows.resize((n + 1) * pb);
     std::uint8_t* d = rows.data() + n * pb;
     d = put_common(d, pass, i);
-    put(d, pass.stamp[i]);
+    d = put(d, pass.stamp[i]);
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const float* c = pass.cov.empty() ? nullptr : &pass.cov[6 * i];
+    for (int k = 0; k < 6; ++k) d = put(d, c ? c[k] : nan);
+    // Horizontal extent: 1-sigma major semi-axis of the horizontal (x, y) covariance.
+    float sh = nan;
+    if (c) {
+      const double a = c[0], b = c[1], e = c[3];
+      sh = static_cast<float>(std::sqrt(0.5 * (a + e) + std::sqrt(0.25 * (a - e) * (a - e) + b * b)));
+    }
+    put(d, sh);
     ++n;
   }
   writer_.append(rows.data(), n);

@@ -5,6 +5,7 @@
 
 #include "pcdp/pass.hpp"
 #include "pcdp/skew.hpp"
+#include "pcdp/uncertainty.hpp"
 
 namespace pcdp {
 
@@ -14,12 +15,14 @@ const OptionSchema& register_schema() {
                "give each return the nod angle at its own stamp, interpolated from the per-line encoder readings"),
       opt_double("max_pose_gap", 1.0, 0.0, std::nullopt, "s",
                  "returns inside a pose-file gap longer than this get no_pose (0: never)"),
+      opt_bool("covariance", true, "propagate each point's 3x3 covariance (sensor and pose_sigma) to cloud.pcd"),
   };
   return s;
 }
 
 void register_pass(Pass& pass, const RegisterParams& params, const SensorParams& sensor,
-                   const Eigen::Isometry3d& T_V_N, const PoseTrack* poses) {
+                   const Eigen::Isometry3d& T_V_N, const PoseTrack* poses, const PoseSigma& pose_sigma,
+                   RpyOrder order) {
   const std::size_t n = pass.size();
   constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
   pass.range_cal.assign(n, std::numeric_limits<float>::quiet_NaN());
@@ -32,7 +35,14 @@ void register_pass(Pass& pass, const RegisterParams& params, const SensorParams&
   pass.oz.assign(n, kNaN);
 
   const EncoderTrack track = encoder_track(pass, sensor.encoder_latency);
-  std::size_t enc_hint = 0, pose_hint = 0;
+  std::size_t enc_hint = 0, pose_hint = 0, rate_hint = 0;
+  if (params.covariance) pass.cov.assign(6 * n, std::numeric_limits<float>::quiet_NaN());
+  PointSigmas sig;
+  sig.range = sensor.range_k * sensor.range_sigma;
+  sig.bearing = quantization_sigma(sensor.bearing_resolution);
+  sig.position = Eigen::Vector3d::Constant(pose_sigma.position);
+  sig.rpy = Eigen::Vector3d::Constant(pose_sigma.rpy);
+  const double enc_var = std::pow(quantization_sigma(sensor.encoder_resolution), 2);
   const Eigen::Isometry3d identity = Eigen::Isometry3d::Identity();
 
   for (std::size_t i = 0; i < n; ++i) {
@@ -75,6 +85,19 @@ void register_pass(Pass& pass, const RegisterParams& params, const SensorParams&
     pass.x[i] = p.x();
     pass.y[i] = p.y();
     pass.z[i] = p.z();
+    if (params.covariance) {
+      const double omega = sensor.encoder_latency_sigma > 0 ? track.rate_at(stamp, rate_hint) : 0.0;
+      sig.nod = std::sqrt(enc_var + std::pow(omega * sensor.encoder_latency_sigma, 2));
+      const Rpy rpy = matrix_to_rpy(T_M_V.linear(), order);
+      const Eigen::Matrix3d C = point_covariance(rc, pass.bearing[i], eta, T_V_N, rpy, order, sig);
+      float* c = &pass.cov[6 * i];
+      c[0] = static_cast<float>(C(0, 0));
+      c[1] = static_cast<float>(C(0, 1));
+      c[2] = static_cast<float>(C(0, 2));
+      c[3] = static_cast<float>(C(1, 1));
+      c[4] = static_cast<float>(C(1, 2));
+      c[5] = static_cast<float>(C(2, 2));
+    }
   }
 }
 
@@ -86,7 +109,8 @@ class RegisterStage final : public Stage {
     T_V_N_ = make_transform(cfg.mount.translation, cfg.mount.rpy, cfg.rpy_order);
   }
   void process(Pass& pass, StageReport& report) override {
-    register_pass(pass, params_, ctx_.config->sensor, T_V_N_, ctx_.poses.get());
+    register_pass(pass, params_, ctx_.config->sensor, T_V_N_, ctx_.poses.get(), ctx_.config->pose_sigma,
+                  ctx_.config->rpy_order);
     report.metrics["lines"] += static_cast<double>(pass.line_count());
   }
 
@@ -105,6 +129,7 @@ StageInfo register_stage_info() {
             RegisterParams p;
             p.skew_correction = sc.options.get_bool("skew_correction");
             p.max_pose_gap = sc.options.get_double("max_pose_gap");
+            p.covariance = sc.options.get_bool("covariance");
             return std::make_unique<RegisterStage>(p, ctx);
           }};
 }

@@ -30,7 +30,9 @@ class ReturnsWriter {
   std::string extra_source_;
 };
 
-/// cloud.pcd: the kept points, x y z range amplitude pass line beam stamp.
+/// cloud.pcd: the kept points, x y z range amplitude pass line beam stamp, their covariance
+/// cov_xx cov_xy cov_xz cov_yy cov_yz cov_zz (m^2; cov_zz is the vertical variance) and sigma_h
+/// (m, 1-sigma major semi-axis of the horizontal covariance). NaN when not computed.
 class CloudWriter {
  public:
   explicit CloudWriter(const std::string& path);

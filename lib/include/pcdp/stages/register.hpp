@@ -4,6 +4,9 @@
 // angle at the return's own stamp (skew correction, skew.hpp), the point in the nod frame, the
 // mount T_V_N, and T_M_V interpolated at the return's stamp (linear position, slerp orientation):
 //   p_M = R_MV(t) * (R_VN * p_N + t_VN) + t_MV(t).
+// With `covariance`, each registered return also gets the 3x3 covariance of its map point from
+// range_sigma, bearing_resolution, encoder_resolution and encoder_latency_sigma (times the local
+// nod rate) and pose_sigma, propagated to first order (uncertainty.hpp).
 // Labels (first that applies): no_return (range 0 or NaN), out_of_range (calibrated range outside
 // [sensor.range_min, sensor.range_max]), no_pose (stamp outside the pose file, or inside a gap
 // longer than max_pose_gap). Out-of-range returns still get their map point when a pose exists.
@@ -21,6 +24,7 @@ namespace pcdp {
 struct RegisterParams {
   bool skew_correction = true;
   double max_pose_gap = 1.0;  ///< s; 0 disables the check
+  bool covariance = true;     ///< propagate the per-point covariance (uncertainty.hpp)
 };
 
 /// The schema of `register` (drives validation, describe and docs).
@@ -29,7 +33,8 @@ const OptionSchema& register_schema();
 /// Pure function: registers `pass` in place (labels, range_cal, nod_at_return, x/y/z, origins).
 /// `poses` may be null (T_M_V = identity for every stamp).
 void register_pass(Pass& pass, const RegisterParams& params, const SensorParams& sensor,
-                   const Eigen::Isometry3d& T_V_N, const PoseTrack* poses);
+                   const Eigen::Isometry3d& T_V_N, const PoseTrack* poses, const PoseSigma& pose_sigma = PoseSigma{},
+                   RpyOrder order = RpyOrder::kXyz);
 
 StageInfo register_stage_info();
 

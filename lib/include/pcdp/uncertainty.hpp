@@ -1,0 +1,39 @@
+// Per-point uncertainty: first-order propagation of the measurement and pose errors through the
+// transform chain  p_M = R_MV (R_VN p_N(r, nu, eta) + t_VN) + t_MV  to a 3x3 covariance in the
+// map frame (Broten & Collier 2005, section 6.3: range, beam orientation, position and
+// roll/pitch/yaw errors).
+#pragma once
+
+#include <Eigen/Core>
+
+#include "pcdp/transforms.hpp"
+
+namespace pcdp {
+
+/// 1-sigma errors of one return.
+struct PointSigmas {
+  double range = 0.0;     ///< m
+  double bearing = 0.0;   ///< rad
+  double nod = 0.0;       ///< rad (encoder quantization and latency)
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  ///< m, of T_M_V (x, y, z)
+  Eigen::Vector3d rpy = Eigen::Vector3d::Zero();       ///< rad, of T_M_V (roll, pitch, yaw in `order`)
+};
+
+/// Jacobian of p_M with respect to (r, nu, eta, x, y, z, roll, pitch, yaw) of T_M_V.
+Eigen::Matrix<double, 3, 9> chain_jacobian(double r, double nu, double eta, const Eigen::Isometry3d& T_V_N,
+                                           const Rpy& rpy_MV, RpyOrder order);
+
+/// Covariance of p_M: J diag(sigma^2) J^T.
+Eigen::Matrix3d point_covariance(double r, double nu, double eta, const Eigen::Isometry3d& T_V_N, const Rpy& rpy_MV,
+                                 RpyOrder order, const PointSigmas& s);
+
+/// 1-sigma of a uniform quantization step q: q / sqrt(12).
+inline double quantization_sigma(double q) { return q / 3.4641016151377544; }
+
+/// Broten & Collier's small-angle estimate of the 3-D position error for an orientation error
+/// d_eps in pitch and yaw (roll rotates about the beam): Delta s = sqrt(2) r d_eps (section 6.3.3).
+/// Their Table 1 tabulates sqrt(2 r d_eps) instead (0.19 m at 1 m and 1 degree); we follow the
+/// formula, which the propagated covariance reproduces.
+inline double broten_collier_orientation_error(double range, double d_eps) { return 1.4142135623730951 * range * d_eps; }
+
+}  // namespace pcdp
