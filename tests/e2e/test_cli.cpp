@@ -404,3 +404,53 @@ TEST(Cli, CleanCloudOnARealPcdKeepsEveryFieldAndAccountsForEveryPoint) {
   EXPECT_EQ(bad.exit_code, 2);
   EXPECT_NE(bad.err.find("--viewpoint '1,2' must be x,y,z"), std::string::npos);
 }
+
+TEST(Cli, CalibrationAndErrorBudgetCommands) {
+  const std::string dir = test::fresh_dir();
+  // calibrate-range: three distances, many samples, exact k = 1.001, b = -0.002.
+  std::string csv = "true,measured\n";
+  for (double y : {1.0, 2.0, 4.0})
+    for (double e : {-0.001, 0.0, 0.001}) csv += std::to_string(y) + "," + std::to_string((y + 0.002) / 1.001 + e) + "\n";
+  test::write_text(dir + "/r.csv", csv);
+  auto res = run_cli({"calibrate-range", dir + "/r.csv"});
+  ASSERT_EQ(res.exit_code, 0) << res.err;
+  EXPECT_NE(res.out.find("range_calibration: {k: 1.001000, b: -0.00200}"), std::string::npos) << res.out;
+  test::write_text(dir + "/one.csv", "true,measured\n2,2.001\n2,2.002\n");
+  res = run_cli({"calibrate-range", dir + "/one.csv"});
+  EXPECT_EQ(res.exit_code, 3);
+  EXPECT_NE(res.err.find("one.csv: range calibration: needs samples at 3 or more distinct true distances, got 1"),
+            std::string::npos)
+      << res.err;
+  // calibrate-mount: simulate a floor scan (Broten & Collier 7.4: 11.33 deg, 1.64 m), then fit it.
+  test::write_text(dir + "/floor.yaml", R"(seed: 3
+passes: 1
+lines_per_pass: 120
+mount: {x: 0.5, z: 1.64, pitch: 0.19775}
+scanner: {nod_min: -0.5, nod_max: 0.1, subrays: 1, beam_divergence: 0.0, transceiver_separation: 0.0}
+motion: {speed: 0.0}
+)");
+  res = run_cli({"simulate", dir + "/floor.yaml", "--output-dir", dir + "/floor"});
+  ASSERT_EQ(res.exit_code, 0) << res.err;
+  test::write_text(dir + "/p.yaml", "input: {scans: floor/pass_*.pcd}\noutput_dir: out\nmount: {x: 0.5, z: 1.5, pitch: 0.1}\n"
+                                    "sensor: {range_calibration: {k: 1.0002, b: -0.0036}}\nstages: [{type: register}]\n");
+  res = run_cli({"calibrate-mount", dir + "/p.yaml"});
+  ASSERT_EQ(res.exit_code, 0) << res.err;
+  double pitch = 0, height = 0;
+  ASSERT_EQ(std::sscanf(res.out.c_str() + res.out.find("pitch "), "pitch %lf", &pitch), 1) << res.out;
+  ASSERT_EQ(std::sscanf(res.out.c_str() + res.out.find("height "), "height %lf", &height), 1) << res.out;
+  EXPECT_NEAR(pitch, 0.19775, 0.05 / 57.2958);
+  EXPECT_NEAR(height, 1.64, 0.005);
+  EXPECT_NE(res.out.find("mount: {x: 0.5, y: 0, z: 1.6"), std::string::npos) << res.out;
+  // The sample scene is no floor scan (moving vehicle, uneven ground, boxes): a clear refusal.
+  res = run_cli({"calibrate-mount", std::string(PCDP_SOURCE_DIR) + "/pipelines/nodding_terrain.yaml"});
+  EXPECT_EQ(res.exit_code, 3);
+  EXPECT_NE(res.err.find("no floor in view: the largest plane holds"), std::string::npos) << res.err;
+  // error-budget: the formula table and the user's sensor, with picture and CSV.
+  res = run_cli({"error-budget", std::string(PCDP_SOURCE_DIR) + "/pipelines/nodding_terrain.yaml", "--svg", dir + "/e.svg",
+                 "--csv", dir + "/e.csv"});
+  ASSERT_EQ(res.exit_code, 0) << res.err;
+  EXPECT_NE(res.out.find("      30        0.740"), std::string::npos) << res.out;  // sqrt(2) * 30 m * 1 deg
+  EXPECT_NE(test::read_text(dir + "/e.svg").find("<polyline"), std::string::npos);
+  const std::string table = test::read_text(dir + "/e.csv");
+  EXPECT_EQ(std::count(table.begin(), table.end(), '\n'), 8);  // header + 7 ranges
+}

@@ -12,7 +12,11 @@
 #include "pcdp/config.hpp"
 #include "pcdp/errors.hpp"
 #include "pcdp/pipeline.hpp"
+#include "pcdp/calibration.hpp"
 #include "pcdp/evaluate.hpp"
+#include "pcdp/pass.hpp"
+#include "pcdp/stages/register.hpp"
+#include "pcdp/uncertainty.hpp"
 #include "pcdp/io/atomic_file.hpp"
 #include "pcdp/nod_plan.hpp"
 #include "pcdp/io/svg_plot.hpp"
@@ -275,6 +279,129 @@ int cmd_clean_cloud(const CleanCloudArgs& a) {
   if (!a.quiet)
     std::printf("%s: %zu points, %llu mixed pixels removed (viewpoint %g %g %g, resolution %g rad) -> %s\n", a.input.c_str(), n,
                 static_cast<unsigned long long>(removed), vp.x(), vp.y(), vp.z(), a.resolution, a.output.c_str());
+  return 0;
+}
+
+int cmd_calibrate_range(const std::string& csv) {
+  std::vector<double> y, z;
+  read_range_samples_csv(csv, y, z);
+  RangeCalibration c;
+  try {
+    c = fit_range_calibration(y, z);
+  } catch (const InputError& e) {
+    throw InputError(csv + ": " + e.what());
+  }
+  std::printf("range calibration (Ye & Borenstein eqs. 1-3): true = k * measured + b\n");
+  std::printf("  k = %.6f  (standard error %.6f)\n  b = %.5f m  (standard error %.5f m)\n", c.k, c.se_k, c.b, c.se_b);
+  std::printf("  %zu samples at %zu distances; residuals of the per-distance means: rms %.2f mm, max %.2f mm\n", c.samples,
+              c.distances, c.rms * 1000, c.max_abs * 1000);
+  std::printf("\npaste into the sensor block:\n  range_calibration: {k: %.6f, b: %.5f}\n", c.k, c.b);
+  return 0;
+}
+
+int cmd_calibrate_mount(const RunArgs& a, const std::vector<std::string>& scans) {
+  LoadOptions o;
+  for (const auto& s : a.sets) o.overrides.push_back(parse_override(s));
+  const PipelineConfig cfg = load_pipeline(a.pipeline, o);
+  const std::vector<std::string> files = scans.empty() ? cfg.scans : scans;
+  // Points in the nod frame: register with an identity mount and no pose (skew correction,
+  // range calibration and range limits as configured).
+  std::vector<Eigen::Vector3d> pts;
+  RegisterParams rp;
+  rp.covariance = false;
+  for (std::size_t k = 0; k < files.size(); ++k) {
+    Pass p = read_pass(files[k], k);
+    register_pass(p, rp, cfg.sensor, Eigen::Isometry3d::Identity(), nullptr);
+    for (std::size_t i = 0; i < p.size(); ++i)
+      if (p.is_kept(i)) pts.emplace_back(p.x[i], p.y[i], p.z[i]);
+  }
+  const Eigen::Vector3d up_N = rpy_to_matrix(cfg.mount.rpy, cfg.rpy_order).transpose() * Eigen::Vector3d::UnitZ();
+  const MountCalibration m = calibrate_mount(pts, cfg.mount.rpy.yaw, cfg.rpy_order, up_N);
+  constexpr double kDeg = 57.29577951308232;
+  std::printf("mount calibration from a flat floor (Broten & Collier 7.4), rpy_order %s:\n", rpy_order_name(cfg.rpy_order));
+  std::printf("  pitch %.5f rad (%.3f deg), roll %.5f rad (%.3f deg), height %.4f m (yaw kept at %.5f rad)\n", m.rpy.pitch,
+              m.rpy.pitch * kDeg, m.rpy.roll, m.rpy.roll * kDeg, m.height, m.rpy.yaw);
+  std::printf("  floor plane: %zu of %zu returns within 3 cm, rms %.1f mm\n", m.inliers, m.points, m.rms * 1000);
+  std::printf("\npaste into the pipeline (x, y and yaw are not observable from a floor; kept from %s):\n", a.pipeline.c_str());
+  std::printf("mount: {x: %g, y: %g, z: %.4f, roll: %.5f, pitch: %.5f, yaw: %g}\n", cfg.mount.translation.x(),
+              cfg.mount.translation.y(), m.height, m.rpy.roll, m.rpy.pitch, m.rpy.yaw);
+  return 0;
+}
+
+int cmd_error_budget(const RunArgs& a, const std::string& svg, const std::string& csv) {
+  LoadOptions o;
+  o.check_inputs = false;  // the budget needs the sensor, mount and pose_sigma blocks only
+  for (const auto& s : a.sets) o.overrides.push_back(parse_override(s));
+  const PipelineConfig cfg = load_pipeline(a.pipeline, o);
+  const SensorParams& sn = cfg.sensor;
+  const Eigen::Isometry3d T_V_N = make_transform(cfg.mount.translation, cfg.mount.rpy, cfg.rpy_order);
+  constexpr double kRad = 0.017453292519943295;
+  const double ranges[] = {1, 5, 10, 15, 20, 25, 30};
+  std::ostringstream table;
+  std::printf("3-D position error from an orientation error d_eps in roll, pitch and yaw: sqrt(2) r d_eps (m)\n");
+  std::printf("(Broten & Collier 6.3.3, Fig. 22; their Table 1 lists sqrt(2 r d_eps) instead, e.g. 0.19 m at 1 m, 1 deg)\n");
+  std::printf("%8s", "range m");
+  for (int d = 1; d <= 6; ++d) std::printf("%9d deg", d);
+  std::printf("\n");
+  table << "range_m";
+  for (int d = 1; d <= 6; ++d) table << ",bc_" << d << "deg_m";
+  table << ",range_sigma_m,bearing_m,encoder_m,pose_position_m,pose_rpy_m,total_m\n";
+  for (double r : ranges) {
+    std::printf("%8.0f", r);
+    for (int d = 1; d <= 6; ++d) std::printf("%13.3f", broten_collier_orientation_error(r, d * kRad));
+    std::printf("\n");
+  }
+  // The user's sensor: each source alone and together, for a beam straight ahead at nod 0.
+  PointSigmas all;
+  all.range = sn.range_k * sn.range_sigma;
+  all.bearing = quantization_sigma(sn.bearing_resolution);
+  all.nod = quantization_sigma(sn.encoder_resolution);
+  all.position = Eigen::Vector3d::Constant(cfg.pose_sigma.position);
+  all.rpy = Eigen::Vector3d::Constant(cfg.pose_sigma.rpy);
+  const auto only = [&](int which) {
+    PointSigmas s;
+    if (which == 0) s.range = all.range;
+    if (which == 1) s.bearing = all.bearing;
+    if (which == 2) s.nod = all.nod;
+    if (which == 3) s.position = all.position;
+    if (which == 4) s.rpy = all.rpy;
+    return which == 5 ? all : s;
+  };
+  std::printf("\nyour sensor (%s): 1-sigma 3-D error of a point straight ahead, by source (mm)\n", a.pipeline.c_str());
+  std::printf("%8s %10s %10s %10s %12s %10s %10s\n", "range m", "range", "bearing", "encoder", "position", "rpy", "total");
+  io::PlotSeries user{"your sensor (1 sigma)", {}, "#000000", true};
+  for (double r : ranges) {
+    double e[6];
+    for (int k = 0; k < 6; ++k)
+      e[k] = std::sqrt(point_covariance(r, 0.0, 0.0, T_V_N, {}, cfg.rpy_order, only(k)).trace());
+    std::printf("%8.0f %10.1f %10.1f %10.1f %12.1f %10.1f %10.1f\n", r, e[0] * 1000, e[1] * 1000, e[2] * 1000, e[3] * 1000,
+                e[4] * 1000, e[5] * 1000);
+    table << r;
+    for (int d = 1; d <= 6; ++d) table << ',' << broten_collier_orientation_error(r, d * kRad);
+    for (int k = 0; k < 6; ++k) table << ',' << e[k];
+    table << '\n';
+  }
+  if (!csv.empty()) {
+    io::write_file_atomic(csv, table.str());
+    std::printf("written: %s\n", csv.c_str());
+  }
+  if (!svg.empty()) {
+    io::PlotSpec spec;
+    spec.title = "Position error against range and orientation error (Broten & Collier Fig. 22)";
+    spec.xlabel = "range (m)";
+    spec.ylabel = "3-D position error (m)";
+    const char* colors[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b"};
+    for (int d = 1; d <= 6; ++d) {
+      io::PlotSeries s{std::to_string(d) + " deg", {}, colors[d - 1], false};
+      for (double r = 0; r <= 30.0; r += 0.5) s.points.emplace_back(r, broten_collier_orientation_error(r, d * kRad));
+      spec.series.push_back(s);
+    }
+    for (double r = 0.5; r <= 30.0; r += 0.5)
+      user.points.emplace_back(r, std::sqrt(point_covariance(r, 0.0, 0.0, T_V_N, {}, cfg.rpy_order, all).trace()));
+    spec.series.push_back(user);
+    io::write_file_atomic(svg, io::svg_line_plot(spec));
+    std::printf("written: %s\n", svg.c_str());
+  }
   return 0;
 }
 

@@ -83,6 +83,23 @@ int main(int argc, char** argv) {
   clean->add_option("--resolution", cc.resolution, "angular step of the scan, rad")->capture_default_str();
   clean->add_flag("-q,--quiet", cc.quiet, "print nothing but errors");
 
+  std::string cr_csv;
+  CLI::App* calr = app.add_subcommand("calibrate-range", "fit the linear range calibration k, b (Ye & Borenstein eqs. 1-3)");
+  calr->add_option("csv", cr_csv, "CSV with columns true,measured (m); many samples per distance allowed")->required();
+  cli::RunArgs cm_args;
+  std::vector<std::string> cm_scans;
+  CLI::App* calm = app.add_subcommand("calibrate-mount", "estimate mount pitch, roll and height from a scan of a flat floor");
+  calm->add_option("pipeline", cm_args.pipeline, "pipeline YAML (sensor block, mount x/y/yaw, rpy_order, input.scans)")->required();
+  calm->add_option("--scan", cm_scans, "pass files of the floor scan (default: the pipeline's input.scans)");
+  calm->add_option("--set", cm_args.sets, "override a key (as for run)");
+  cli::RunArgs eb_args;
+  std::string eb_svg, eb_csv;
+  CLI::App* ebud = app.add_subcommand("error-budget", "positional error against range and orientation error, for a sensor block");
+  ebud->add_option("pipeline", eb_args.pipeline, "pipeline YAML (sensor block, mount, pose_sigma)")->required();
+  ebud->add_option("--set", eb_args.sets, "override a key (as for run)");
+  ebud->add_option("--svg", eb_svg, "draw the picture (Broten & Collier Fig. 22 analogue)");
+  ebud->add_option("--csv", eb_csv, "write the table as CSV");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -96,6 +113,9 @@ int main(int argc, char** argv) {
     if (*stages) return cli::cmd_stages();
     if (*describe) return cli::cmd_describe(describe_what);
     if (*evaluate) return cli::cmd_evaluate(ev_truth, ev_run, ev_json, ev_quiet);
+    if (*calr) return cli::cmd_calibrate_range(cr_csv);
+    if (*calm) return cli::cmd_calibrate_mount(cm_args, cm_scans);
+    if (*ebud) return cli::cmd_error_budget(eb_args, eb_svg, eb_csv);
     if (*clean) return cli::cmd_clean_cloud(cc);
     if (*amp) return cli::cmd_amplitude_model(edge, am);
     if (*plan) return cli::cmd_plan_nod(np, np_csv);
