@@ -9,6 +9,7 @@
 #include <unordered_map>
 
 #include "pcdp/errors.hpp"
+#include "pcdp/io/geotiff.hpp"
 #include "pcdp/io/pcd.hpp"
 
 namespace fs = std::filesystem;
@@ -124,6 +125,48 @@ Evaluation evaluate_run(const std::string& truth_dir, const std::string& run_dir
   for (double v : err) ss += v * v;
   e.error_rms = err.empty() ? 0.0 : std::sqrt(ss / static_cast<double>(err.size()));
   e.implied_median = quantile(implied, 0.5);
+
+  // Elevation against the true top surface: RMSE over observed cells away from the edges of the
+  // true surface (where the true height changes by more than 5 cm to a neighbouring cell).
+  const std::string etif = (fs::path(run_dir) / "elevation.tif").string(), th = (tdir / "height.pcd").string();
+  if (fs::exists(etif) && fs::exists(th)) {
+    const ElevationGrid grid = io::read_elevation_geotiff(etif);
+    const io::PcdTable t = io::read_pcd(th);
+    const auto tx = col(t, "x", th), ty = col(t, "y", th), tz = col(t, "z", th);
+    std::unordered_map<std::uint64_t, double> truth_z;
+    const auto k2 = [](std::int64_t ix, std::int64_t iy) {
+      return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(ix)) << 32) | static_cast<std::uint32_t>(iy);
+    };
+    for (std::size_t i = 0; i < tx.size(); ++i) truth_z[k2(grid.cell_index(tx[i]), grid.cell_index(ty[i]))] = tz[i];
+    e.has_elevation = true;
+    double se = 0, sb = 0;
+    std::vector<double> absd;
+    for (std::size_t i = 0; i < tx.size(); ++i) {
+      const std::int64_t ix = grid.cell_index(tx[i]), iy = grid.cell_index(ty[i]);
+      ++e.truth_cells;
+      const ElevationCell* c = grid.find(ix, iy);
+      if (!c || c->weight() <= 0) continue;
+      ++e.observed_cells;
+      bool edge = false;
+      for (int dx = -1; dx <= 1 && !edge; ++dx)
+        for (int dy = -1; dy <= 1 && !edge; ++dy) {
+          const auto it = truth_z.find(k2(ix + dx, iy + dy));
+          edge = it == truth_z.end() || std::fabs(it->second - tz[i]) > 0.05;
+        }
+      if (edge) continue;
+      const double d = c->elevation() - tz[i];
+      se += d * d;
+      sb += d;
+      absd.push_back(std::fabs(d));
+      ++e.scored_cells;
+    }
+    if (e.scored_cells) {
+      e.elevation_rmse = std::sqrt(se / static_cast<double>(e.scored_cells));
+      e.elevation_bias = sb / static_cast<double>(e.scored_cells);
+      e.elevation_abs_median = quantile(absd, 0.5);
+      e.elevation_abs_p95 = quantile(absd, 0.95);
+    }
+  }
   return e;
 }
 
@@ -145,6 +188,10 @@ std::string evaluation_table(const Evaluation& e) {
      << e.error_median * 1000 << " mm, p95 " << e.error_p95 * 1000 << " mm, rms " << e.error_rms * 1000 << " mm";
   if (e.implied_median > 0) os << "; implied by the noise model: median " << e.implied_median * 1000 << " mm";
   os << "\n";
+  if (e.has_elevation)
+    os << "elevation: rmse " << std::setprecision(1) << e.elevation_rmse * 1000 << " mm (bias " << e.elevation_bias * 1000
+       << " mm, |error| median " << e.elevation_abs_median * 1000 << " mm, p95 " << e.elevation_abs_p95 * 1000 << " mm) over " << e.scored_cells << " observed cells away from edges; coverage " << std::setprecision(3)
+       << e.coverage() << " (" << e.observed_cells << " of " << e.truth_cells << " true cells)\n";
   return os.str();
 }
 
@@ -162,6 +209,10 @@ std::string evaluation_json(const Evaluation& e) {
                 {"false_rejection", e.valid_false_rejection()}};
   j["registration_error"] = {{"compared", e.compared}, {"median", e.error_median}, {"p95", e.error_p95},
                              {"rms", e.error_rms}, {"implied_median", e.implied_median}};
+  if (e.has_elevation)
+    j["elevation"] = {{"rmse", e.elevation_rmse}, {"bias", e.elevation_bias}, {"abs_median", e.elevation_abs_median},
+                      {"abs_p95", e.elevation_abs_p95}, {"scored_cells", e.scored_cells},
+                      {"observed_cells", e.observed_cells}, {"truth_cells", e.truth_cells}, {"coverage", e.coverage()}};
   return j.dump(2) + "\n";
 }
 

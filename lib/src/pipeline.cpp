@@ -114,7 +114,7 @@ RunSummary Pipeline::run(const ProgressFn& progress) {
                            std::to_string(sum.input_returns));
   for (const auto& r : sum.stages)
     for (const auto& w : r.warnings) sum.warnings.push_back(r.name + ": " + w);
-  sum.outputs = {out.final_path("returns.pcd"), out.final_path("cloud.pcd"), out.final_path("report.json")};
+  sum.outputs = out.final_paths();
   sum.seconds = seconds_since(t_run);
   {
     std::FILE* f = std::fopen(report_tmp.c_str(), "wb");

@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "pcdp/stage.hpp"
+#include "pcdp/stages/fuse_elevation.hpp"
 #include "pcdp/stages/register.hpp"
 #include "pcdp/stages/reject_mixed_pixels.hpp"
 #include "pcdp/stages/reject_occlusion.hpp"
@@ -14,6 +15,7 @@ const std::vector<StageInfo>& builtin_stages() {
       register_stage_info(),
       reject_occlusion_stage_info(),
       reject_mixed_pixels_stage_info(),
+      fuse_elevation_stage_info(),
   };
   return stages;
 }

@@ -18,6 +18,7 @@
 #include "pcdp/stages/register.hpp"
 #include "pcdp/uncertainty.hpp"
 #include "pcdp/io/atomic_file.hpp"
+#include "pcdp/io/geotiff.hpp"
 #include "pcdp/nod_plan.hpp"
 #include "pcdp/io/svg_plot.hpp"
 #include "pcdp/occlusion_model.hpp"
@@ -402,6 +403,23 @@ int cmd_error_budget(const RunArgs& a, const std::string& svg, const std::string
     io::write_file_atomic(svg, io::svg_line_plot(spec));
     std::printf("written: %s\n", svg.c_str());
   }
+  return 0;
+}
+
+int cmd_merge(const std::vector<std::string>& inputs, const std::string& output, const std::string& png) {
+  if (inputs.size() < 2) throw ConfigError("merge: give two or more elevation grids to merge");
+  ElevationGrid grid = io::read_elevation_geotiff(inputs[0]);
+  for (std::size_t k = 1; k < inputs.size(); ++k) {
+    const ElevationGrid other = io::read_elevation_geotiff(inputs[k]);
+    if (std::fabs(other.resolution() - grid.resolution()) > 1e-9 || std::fabs(other.band() - grid.band()) > 1e-9)
+      throw InputError(inputs[k] + ": resolution " + format_value(other.resolution()) + " m and band " +
+                       format_value(other.band()) + " m differ from " + inputs[0] + "'s (" + format_value(grid.resolution()) +
+                       " m, " + format_value(grid.band()) + " m); grids merge only on the same grid");
+    grid.merge(other);
+  }
+  io::write_elevation_geotiff(grid, output);
+  if (!png.empty()) io::write_elevation_png(grid, png);
+  std::printf("merged %zu grids -> %s (%zu cells)\n", inputs.size(), output.c_str(), grid.size());
   return 0;
 }
 

@@ -100,6 +100,13 @@ int main(int argc, char** argv) {
   ebud->add_option("--svg", eb_svg, "draw the picture (Broten & Collier Fig. 22 analogue)");
   ebud->add_option("--csv", eb_csv, "write the table as CSV");
 
+  std::vector<std::string> mg_in;
+  std::string mg_out, mg_png;
+  CLI::App* mrg = app.add_subcommand("merge", "merge elevation grids fused from disjoint sets of passes (exact, any order)");
+  mrg->add_option("grids", mg_in, "elevation.tif files written by fuse_elevation or merge")->required();
+  mrg->add_option("-o,--output", mg_out, "merged GeoTIFF")->required();
+  mrg->add_option("--png", mg_png, "also draw the merged picture");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -113,6 +120,7 @@ int main(int argc, char** argv) {
     if (*stages) return cli::cmd_stages();
     if (*describe) return cli::cmd_describe(describe_what);
     if (*evaluate) return cli::cmd_evaluate(ev_truth, ev_run, ev_json, ev_quiet);
+    if (*mrg) return cli::cmd_merge(mg_in, mg_out, mg_png);
     if (*calr) return cli::cmd_calibrate_range(cr_csv);
     if (*calm) return cli::cmd_calibrate_mount(cm_args, cm_scans);
     if (*ebud) return cli::cmd_error_budget(eb_args, eb_svg, eb_csv);

@@ -34,6 +34,12 @@ struct Evaluation {
   std::uint64_t compared = 0;
   double error_median = 0, error_p95 = 0, error_rms = 0;
   double implied_median = 0;  ///< median over returns of the RMS error the noise model implies (0: unknown)
+  // Elevation (when the run has elevation.tif and the truth has height.pcd).
+  bool has_elevation = false;
+  std::uint64_t truth_cells = 0, observed_cells = 0;  ///< of the true grid, observed by the run
+  std::uint64_t scored_cells = 0;                      ///< observed, away from edges of the true surface
+  double elevation_rmse = 0, elevation_bias = 0, elevation_abs_median = 0, elevation_abs_p95 = 0;
+  double coverage() const { return truth_cells ? static_cast<double>(observed_cells) / static_cast<double>(truth_cells) : 0.0; }
 };
 
 /// Noise of the simulated sensor, for the implied registration error (from truth/scene.yaml).

@@ -40,6 +40,12 @@ std::string StagedOutputs::final_path(const std::string& filename) const {
   return (fs::path(dir_) / filename).string();
 }
 
+std::vector<std::string> StagedOutputs::final_paths() const {
+  std::vector<std::string> out;
+  for (const auto& [tmp, fin] : staged_) out.push_back(fin);
+  return out;
+}
+
 void StagedOutputs::commit() {
   for (const auto& [tmp, fin] : staged_) {
     if (std::rename(tmp.c_str(), fin.c_str()) != 0)

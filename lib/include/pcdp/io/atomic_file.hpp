@@ -20,6 +20,8 @@ class StagedOutputs final : public OutputSink {
 
   std::string staged_path(const std::string& filename) override;
   std::string final_path(const std::string& filename) const;
+  /// The final paths of everything staged so far.
+  std::vector<std::string> final_paths() const;
   /// Renames every staged file to its final name.
   void commit();
   const std::string& dir() const { return dir_; }

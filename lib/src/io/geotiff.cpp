@@ -1,0 +1,290 @@
+#include "pcdp/io/geotiff.hpp"
+
+#include <cpl_conv.h>
+#include <cpl_string.h>
+#include <gdal_priv.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <mutex>
+#include <vector>
+
+#include "pcdp/errors.hpp"
+
+namespace pcdp::io {
+
+namespace {
+constexpr int kBands = 11;
+const char* const kBandNames[kBands] = {"elevation", "variance", "count", "min", "max", "top_band",
+                                        "top_weight", "top_mean", "next_weight", "next_mean", "passes"};
+
+void gdal_init() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    GDALAllRegister();
+    CPLSetErrorHandler(CPLQuietErrorHandler);
+  });
+}
+
+void rename_into_place(const std::string& tmp, const std::string& path) {
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    throw std::runtime_error(path + ": cannot rename into place");
+  }
+}
+}  // namespace
+
+void write_elevation_geotiff(const ElevationGrid& grid, const std::string& path) {
+  gdal_init();
+  std::int64_t ix0 = 0, iy0 = 0, ix1 = 0, iy1 = 0;
+  if (!grid.bounds(ix0, iy0, ix1, iy1)) ix0 = iy0 = ix1 = iy1 = 0;
+  const int nx = static_cast<int>(ix1 - ix0 + 1), ny = static_cast<int>(iy1 - iy0 + 1);
+  GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GTiff");
+  if (!drv) throw std::runtime_error("GDAL has no GTiff driver");
+  const std::string tmp = path + ".tmp-gdal.tif";
+  char** opts = nullptr;
+  opts = CSLSetNameValue(opts, "COMPRESS", "DEFLATE");
+  opts = CSLSetNameValue(opts, "INTERLEAVE", "BAND");
+  GDALDataset* ds = drv->Create(tmp.c_str(), nx, ny, kBands, GDT_Float32, opts);
+  CSLDestroy(opts);
+  if (!ds) throw std::runtime_error(path + ": GDAL cannot create " + tmp);
+  const double res = grid.resolution();
+  double gt[6] = {static_cast<double>(ix0) * res, res, 0.0, static_cast<double>(iy1 + 1) * res, 0.0, -res};
+  ds->SetGeoTransform(gt);
+  ds->SetMetadataItem("PCDP_RESOLUTION", std::to_string(res).c_str());
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.17g", grid.band());
+  ds->SetMetadataItem("PCDP_BAND", buf);
+  std::snprintf(buf, sizeof buf, "%.17g", res);
+  ds->SetMetadataItem("PCDP_RESOLUTION", buf);
+  ds->SetMetadataItem("PCDP_CONTRACT", "bands 1-5 per DESIGN.md; 6-11 exact merge state");
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::vector<float> data(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny));
+  for (int b = 0; b < kBands; ++b) {
+    std::fill(data.begin(), data.end(), nan);
+    grid.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
+      if (c.empty()) return;
+      const std::size_t col = static_cast<std::size_t>(ix - ix0), row = static_cast<std::size_t>(iy1 - iy);
+      float& v = data[row * static_cast<std::size_t>(nx) + col];
+      const bool fused = c.weight() > 0;
+      switch (b) {
+        case 0: v = fused ? static_cast<float>(c.elevation()) : nan; break;
+        case 1: v = fused ? static_cast<float>(c.variance()) : nan; break;
+        case 2: v = static_cast<float>(c.count); break;
+        case 3: v = c.zmin; break;
+        case 4: v = c.zmax; break;
+        case 5: v = static_cast<float>(c.top); break;
+        case 6: v = static_cast<float>(c.w_top); break;
+        case 7: v = c.w_top > 0 ? static_cast<float>(c.wz_top / c.w_top) : nan; break;
+        case 8: v = static_cast<float>(c.w_next); break;
+        case 9: v = c.w_next > 0 ? static_cast<float>(c.wz_next / c.w_next) : nan; break;
+        default: v = static_cast<float>(c.passes); break;
+      }
+    });
+    GDALRasterBand* band = ds->GetRasterBand(b + 1);
+    band->SetDescription(kBandNames[b]);
+    band->SetNoDataValue(std::numeric_limits<double>::quiet_NaN());
+    if (band->RasterIO(GF_Write, 0, 0, nx, ny, data.data(), nx, ny, GDT_Float32, 0, 0) != CE_None) {
+      GDALClose(ds);
+      std::remove(tmp.c_str());
+      throw std::runtime_error(path + ": GDAL write failed");
+    }
+  }
+  GDALClose(ds);
+  rename_into_place(tmp, path);
+}
+
+ElevationGrid read_elevation_geotiff(const std::string& path) {
+  gdal_init();
+  GDALDataset* ds = static_cast<GDALDataset*>(GDALOpen(path.c_str(), GA_ReadOnly));
+  if (!ds) throw InputError(path + ": cannot open as a GeoTIFF");
+  const char* r = ds->GetMetadataItem("PCDP_RESOLUTION");
+  const char* bnd = ds->GetMetadataItem("PCDP_BAND");
+  if (!r || !bnd || ds->GetRasterCount() != kBands) {
+    GDALClose(ds);
+    throw InputError(path + ": not an elevation grid of pcd_pipeline (needs its 11 bands and PCDP_* metadata to merge)");
+  }
+  const double res = std::atof(r);
+  ElevationGrid grid(res, std::atof(bnd));
+  double gt[6];
+  ds->GetGeoTransform(gt);
+  const int nx = ds->GetRasterXSize(), ny = ds->GetRasterYSize();
+  const std::int64_t ix0 = std::llround(gt[0] / res), iy1 = std::llround(gt[3] / res) - 1;
+  std::vector<std::vector<float>> bands(kBands, std::vector<float>(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny)));
+  for (int b = 0; b < kBands; ++b)
+    if (ds->GetRasterBand(b + 1)->RasterIO(GF_Read, 0, 0, nx, ny, bands[static_cast<std::size_t>(b)].data(), nx, ny,
+                                           GDT_Float32, 0, 0) != CE_None) {
+      GDALClose(ds);
+      throw InputError(path + ": GDAL read failed");
+    }
+  GDALClose(ds);
+  for (int row = 0; row < ny; ++row)
+    for (int col = 0; col < nx; ++col) {
+      const std::size_t i = static_cast<std::size_t>(row) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(col);
+      if (std::isnan(bands[2][i]) || bands[2][i] <= 0) continue;
+      ElevationCell c;
+      c.count = static_cast<std::uint32_t>(bands[2][i]);
+      c.zmin = bands[3][i];
+      c.zmax = bands[4][i];
+      c.top = static_cast<std::int32_t>(bands[5][i]);
+      c.w_top = bands[6][i];
+      c.wz_top = c.w_top > 0 ? c.w_top * static_cast<double>(bands[7][i]) : 0.0;
+      c.w_next = bands[8][i];
+      c.wz_next = c.w_next > 0 ? c.w_next * static_cast<double>(bands[9][i]) : 0.0;
+      c.passes = static_cast<std::uint32_t>(bands[10][i]);
+      grid.set_cell(ix0 + col, iy1 - row, c);
+    }
+  return grid;
+}
+
+// ---- the picture -----------------------------------------------------------------------------
+
+namespace {
+struct Rgb {
+  double r, g, b;
+};
+Rgb ramp(double t) {  // a perceptual ramp (viridis-like control points)
+  static const Rgb k[] = {{68, 1, 84}, {59, 82, 139}, {33, 145, 140}, {94, 201, 98}, {253, 231, 37}};
+  t = std::clamp(t, 0.0, 1.0) * 4.0;
+  const int i = std::min(3, static_cast<int>(t));
+  const double f = t - i;
+  return {k[i].r + f * (k[i + 1].r - k[i].r), k[i].g + f * (k[i + 1].g - k[i].g), k[i].b + f * (k[i + 1].b - k[i].b)};
+}
+
+// A 3x5 bitmap font for the labels (digits, '.', '-', 'm').
+const char* glyph(char c) {
+  switch (c) {
+    case '0': return "111101101101111";
+    case '1': return "010110010010111";
+    case '2': return "111001111100111";
+    case '3': return "111001111001111";
+    case '4': return "101101111001001";
+    case '5': return "111100111001111";
+    case '6': return "111100111101111";
+    case '7': return "111001001001001";
+    case '8': return "111101111101111";
+    case '9': return "111101111001111";
+    case '.': return "000000000000010";
+    case '-': return "000000111000000";
+    case 'm': return "000000111111101";
+    default: return "000000000000000";
+  }
+}
+
+struct Canvas {
+  int w, h;
+  std::vector<std::uint8_t> r, g, b;
+  Canvas(int W, int H) : w(W), h(H), r(static_cast<std::size_t>(W * H), 255), g(r), b(r) {}
+  void put(int x, int y, const Rgb& c) {
+    if (x < 0 || y < 0 || x >= w || y >= h) return;
+    const std::size_t i = static_cast<std::size_t>(y * w + x);
+    r[i] = static_cast<std::uint8_t>(std::clamp(c.r, 0.0, 255.0));
+    g[i] = static_cast<std::uint8_t>(std::clamp(c.g, 0.0, 255.0));
+    b[i] = static_cast<std::uint8_t>(std::clamp(c.b, 0.0, 255.0));
+  }
+  void text(int x, int y, const std::string& s, int scale = 2) {
+    for (char ch : s) {
+      const char* gl = glyph(ch);
+      for (int row = 0; row < 5; ++row)
+        for (int col = 0; col < 3; ++col)
+          if (gl[row * 3 + col] == '1')
+            for (int dy = 0; dy < scale; ++dy)
+              for (int dx = 0; dx < scale; ++dx) put(x + col * scale + dx, y + row * scale + dy, {0, 0, 0});
+      x += 4 * scale;
+    }
+  }
+};
+
+std::string fmt(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.2f", v);
+  return b;
+}
+}  // namespace
+
+void write_elevation_png(const ElevationGrid& grid, const std::string& path) {
+  gdal_init();
+  std::int64_t ix0 = 0, iy0 = 0, ix1 = 0, iy1 = 0;
+  if (!grid.bounds(ix0, iy0, ix1, iy1)) ix0 = iy0 = ix1 = iy1 = 0;
+  const int nx = static_cast<int>(ix1 - ix0 + 1), ny = static_cast<int>(iy1 - iy0 + 1);
+  std::vector<double> z(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny), std::numeric_limits<double>::quiet_NaN());
+  std::vector<double> vals;
+  grid.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
+    if (c.weight() <= 0) return;
+    const double e = c.elevation();
+    z[static_cast<std::size_t>(iy1 - iy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(ix - ix0)] = e;
+    vals.push_back(e);
+  });
+  double lo = 0, hi = 1;
+  if (!vals.empty()) {  // 2nd and 98th percentiles: a few outliers do not wash out the colours
+    std::sort(vals.begin(), vals.end());
+    lo = vals[vals.size() * 2 / 100];
+    hi = vals[std::min(vals.size() - 1, vals.size() * 98 / 100)];
+    if (hi - lo < 1e-3) hi = lo + 1e-3;
+  }
+  const int scale = std::max(1, std::min(8, 900 / std::max(nx, ny)));
+  const int mapw = nx * scale, maph = ny * scale, W = mapw + 130, H = maph + 60;
+  Canvas cv(W, H);
+  const double res = grid.resolution();
+  const auto at = [&](int col, int row) {
+    col = std::clamp(col, 0, nx - 1);
+    row = std::clamp(row, 0, ny - 1);
+    return z[static_cast<std::size_t>(row) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(col)];
+  };
+  for (int row = 0; row < ny; ++row)
+    for (int col = 0; col < nx; ++col) {
+      const double e = at(col, row);
+      Rgb c{225, 225, 225};
+      if (std::isfinite(e)) {
+        c = ramp((e - lo) / (hi - lo));
+        // Hillshade: light from the north-west, 45 deg up.
+        double dzdx = at(col + 1, row) - at(col - 1, row), dzdy = at(col, row - 1) - at(col, row + 1);
+        if (!std::isfinite(dzdx)) dzdx = 0;
+        if (!std::isfinite(dzdy)) dzdy = 0;
+        dzdx /= 2 * res;
+        dzdy /= 2 * res;
+        const double slope = std::atan(std::hypot(dzdx, dzdy)), aspect = std::atan2(dzdy, -dzdx);
+        const double zen = 0.785398, az = 2.356194;
+        const double hs = std::cos(zen) * std::cos(slope) + std::sin(zen) * std::sin(slope) * std::cos(az - aspect);
+        const double f = 0.55 + 0.45 * std::clamp(hs, 0.0, 1.0);
+        c = {c.r * f, c.g * f, c.b * f};
+      }
+      for (int dy = 0; dy < scale; ++dy)
+        for (int dx = 0; dx < scale; ++dx) cv.put(col * scale + dx + 10, row * scale + dy + 10, c);
+    }
+  // Colour bar with the heights at its ends and middle.
+  const int bx = mapw + 30, by = 10, bh = std::max(100, maph - 20);
+  for (int y = 0; y < bh; ++y)
+    for (int x = 0; x < 20; ++x) cv.put(bx + x, by + y, ramp(1.0 - static_cast<double>(y) / (bh - 1)));
+  cv.text(bx + 26, by, fmt(hi) + "m");
+  cv.text(bx + 26, by + bh / 2 - 5, fmt(0.5 * (lo + hi)) + "m");
+  cv.text(bx + 26, by + bh - 10, fmt(lo) + "m");
+  // Scale bar: a round length of about a fifth of the map.
+  double len = res * nx / 5.0;
+  const double mag = std::pow(10.0, std::floor(std::log10(len)));
+  len = std::floor(len / mag) * mag;
+  const int lpx = static_cast<int>(len / res * scale);
+  for (int x = 0; x < lpx; ++x)
+    for (int y = 0; y < 4; ++y) cv.put(10 + x, maph + 25 + y, {0, 0, 0});
+  cv.text(10 + lpx + 8, maph + 22, fmt(len) + "m");
+
+  GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+  GDALDriver* png = GetGDALDriverManager()->GetDriverByName("PNG");
+  if (!mem || !png) throw std::runtime_error("GDAL lacks the MEM or PNG driver");
+  GDALDataset* ds = mem->Create("", W, H, 3, GDT_Byte, nullptr);
+  std::vector<std::uint8_t>* chans[3] = {&cv.r, &cv.g, &cv.b};
+  for (int k = 0; k < 3; ++k)
+    if (ds->GetRasterBand(k + 1)->RasterIO(GF_Write, 0, 0, W, H, chans[k]->data(), W, H, GDT_Byte, 0, 0) != CE_None)
+      throw std::runtime_error(path + ": GDAL raster write failed");
+  const std::string tmp = path + ".tmp-gdal.png";
+  GDALDataset* out = png->CreateCopy(tmp.c_str(), ds, FALSE, nullptr, nullptr, nullptr);
+  GDALClose(ds);
+  if (!out) throw std::runtime_error(path + ": GDAL cannot write the PNG");
+  GDALClose(out);
+  std::remove((tmp + ".aux.xml").c_str());
+  rename_into_place(tmp, path);
+}
+
+}  // namespace pcdp::io

@@ -1,0 +1,77 @@
+#include "pcdp/stages/fuse_elevation.hpp"
+
+#include <cmath>
+#include <cstdio>
+
+#include "pcdp/errors.hpp"
+#include "pcdp/io/geotiff.hpp"
+#include "pcdp/pass.hpp"
+
+namespace pcdp {
+
+const OptionSchema& fuse_elevation_schema() {
+  static const OptionSchema s = {
+      opt_double("resolution", 0.1, 0.001, 1000.0, "m", "cell size of the grid"),
+      opt_double("band", 0.05, 0.001, 100.0, "m", "height band of the top-surface gate (points more than one band below the top band are not fused)"),
+      opt_string("extent", "", "xmin,ymin,xmax,ymax in map metres; empty: the grid grows with the data"),
+      opt_bool("png", true, "also draw elevation.png"),
+  };
+  return s;
+}
+
+void fuse_pass(ElevationGrid& grid, const Pass& pass, const FuseElevationParams& p, double fallback_var) {
+  const bool cov = pass.cov.size() == 6 * pass.size();
+  for (std::size_t i = 0; i < pass.size(); ++i) {
+    if (!pass.is_kept(i) || !std::isfinite(pass.z[i])) continue;
+    if (p.has_extent && (pass.x[i] < p.xmin || pass.x[i] >= p.xmax || pass.y[i] < p.ymin || pass.y[i] >= p.ymax)) continue;
+    double var = cov ? static_cast<double>(pass.cov[6 * i + 5]) : fallback_var;
+    if (!(var > 1e-12)) var = fallback_var;
+    grid.add(pass.x[i], pass.y[i], pass.z[i], var, static_cast<std::int32_t>(pass.index));
+  }
+}
+
+namespace {
+class FuseElevationStage final : public Stage {
+ public:
+  FuseElevationStage(FuseElevationParams p, double fallback_var)
+      : params_(p), fallback_var_(fallback_var), grid_(p.resolution, p.band) {}
+  void process(Pass& pass, StageReport&) override { fuse_pass(grid_, pass, params_, fallback_var_); }
+  void finish(OutputSink& sink, StageReport& report) override {
+    io::write_elevation_geotiff(grid_, sink.staged_path("elevation.tif"));
+    if (params_.png) io::write_elevation_png(grid_, sink.staged_path("elevation.png"));
+    std::size_t fused = 0;
+    grid_.for_each([&](std::int64_t, std::int64_t, const ElevationCell& c) { fused += c.weight() > 0; });
+    report.metrics["cells"] = static_cast<double>(fused);
+  }
+
+ private:
+  FuseElevationParams params_;
+  double fallback_var_;
+  ElevationGrid grid_;
+};
+}  // namespace
+
+StageInfo fuse_elevation_stage_info() {
+  return {"fuse_elevation",
+          "2.5-D elevation grid of the top surface, weighted by each point's vertical variance (elevation.tif, .png)",
+          fuse_elevation_schema(),
+          [](const StageConfig& sc, const RunContext& ctx) -> std::unique_ptr<Stage> {
+            const OptionValues& o = sc.options;
+            FuseElevationParams p;
+            p.resolution = o.get_double("resolution");
+            p.band = o.get_double("band");
+            p.png = o.get_bool("png");
+            const std::string ext = o.get_string("extent");
+            if (!ext.empty()) {
+              if (std::sscanf(ext.c_str(), "%lf,%lf,%lf,%lf", &p.xmin, &p.ymin, &p.xmax, &p.ymax) != 4 || !(p.xmax > p.xmin) ||
+                  !(p.ymax > p.ymin))
+                throw ConfigError(sc.where + ": stage '" + sc.name + "' (fuse_elevation): option 'extent' = '" + ext +
+                                  "' must be xmin,ymin,xmax,ymax with xmax > xmin and ymax > ymin");
+              p.has_extent = true;
+            }
+            const double s = ctx.config->sensor.range_sigma;
+            return std::make_unique<FuseElevationStage>(p, s > 0 ? s * s : 1e-4);
+          }};
+}
+
+}  // namespace pcdp

@@ -1,0 +1,127 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+#include "pcdp/elevation.hpp"
+#include "pcdp/io/geotiff.hpp"
+#include "pcdp/pass.hpp"
+#include "pcdp/sim/nodding_sim.hpp"
+#include "pcdp/stages/fuse_elevation.hpp"
+#include "pcdp/stages/register.hpp"
+#include "test_support.hpp"
+
+using namespace pcdp;
+
+namespace {
+void expect_same(const ElevationGrid& a, const ElevationGrid& b, double tol) {
+  std::size_t n = 0;
+  a.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
+    const ElevationCell* d = b.find(ix, iy);
+    ASSERT_NE(d, nullptr) << ix << "," << iy;
+    EXPECT_EQ(c.count, d->count);
+    EXPECT_EQ(c.passes, d->passes);
+    EXPECT_EQ(c.top, d->top);
+    if (c.weight() > 0) {
+      EXPECT_NEAR(c.elevation(), d->elevation(), tol);
+      EXPECT_NEAR(c.variance(), d->variance(), tol * c.variance());
+    }
+    EXPECT_EQ(c.zmax, d->zmax);
+    ++n;
+  });
+  EXPECT_EQ(n, b.size());
+}
+
+std::vector<Pass> registered_sample_like_passes() {
+  sim::SimConfig c = test::small_sim_config();
+  c.passes = 4;
+  c.scanner.range_sigma = 0.005;
+  const auto r = sim::simulate(c);
+  const PoseTrack poses(r.poses);
+  std::vector<Pass> out;
+  for (const auto& sp : r.passes) {
+    Pass p = sp.pass;
+    register_pass(p, RegisterParams{}, SensorParams{}, make_transform(c.mount_translation, c.mount_rpy, c.rpy_order), &poses);
+    out.push_back(std::move(p));
+  }
+  return out;
+}
+}  // namespace
+
+TEST(Elevation, TopSurfaceGateKeepsTheTopOfAFaceAndIgnoresLowerPoints) {
+  ElevationGrid g(0.1, 0.05);
+  for (int i = 0; i < 20; ++i) g.add(0.05, 0.05, 0.02 * i, 1e-4, 0);  // a vertical face 0 .. 0.38 m
+  for (int i = 0; i < 5; ++i) g.add(0.05, 0.05, 0.40, 1e-4, 0);       // its top surface
+  const ElevationCell* c = g.find(0, 0);
+  ASSERT_NE(c, nullptr);
+  EXPECT_NEAR(c->elevation(), 0.39, 0.02);
+  EXPECT_EQ(c->count, 25u);
+  EXPECT_NEAR(c->zmin, 0.0, 1e-6);
+  g.add(0.05, 0.05, -0.5, 1e-4, 1);  // a point under an overhang: counted, not fused
+  EXPECT_NEAR(g.find(0, 0)->elevation(), 0.39, 0.02);
+  EXPECT_EQ(g.find(0, 0)->passes, 2u);
+}
+
+TEST(Elevation, InverseVarianceWeighting) {
+  ElevationGrid g(1.0, 1.0);
+  g.add(0.5, 0.5, 0.10, 1e-4, 0);
+  g.add(0.5, 0.5, 0.20, 4e-4, 0);  // four times the variance: a quarter of the weight
+  EXPECT_NEAR(g.find(0, 0)->elevation(), (0.10 * 4 + 0.20) / 5, 1e-12);
+  EXPECT_NEAR(g.find(0, 0)->variance(), 1.0 / (1e4 + 2.5e3), 1e-15);
+}
+
+TEST(Elevation, MergingGridsOfDisjointPassesEqualsFusingAllPasses) {
+  const auto passes = registered_sample_like_passes();
+  FuseElevationParams prm;
+  ElevationGrid all(prm.resolution, prm.band);
+  for (const auto& p : passes) fuse_pass(all, p, prm, 1e-4);
+  // Every grouping and order: {0,1} + {2,3}, {3} + {0,2} + {1}, and the reverse.
+  ElevationGrid a(prm.resolution, prm.band), b(prm.resolution, prm.band);
+  fuse_pass(a, passes[0], prm, 1e-4);
+  fuse_pass(a, passes[1], prm, 1e-4);
+  fuse_pass(b, passes[2], prm, 1e-4);
+  fuse_pass(b, passes[3], prm, 1e-4);
+  ElevationGrid ab = a;
+  ab.merge(b);
+  expect_same(all, ab, 1e-9);
+  ElevationGrid ba = b;
+  ba.merge(a);
+  expect_same(all, ba, 1e-9);
+  ElevationGrid g3(prm.resolution, prm.band), g02(prm.resolution, prm.band), g1(prm.resolution, prm.band);
+  fuse_pass(g3, passes[3], prm, 1e-4);
+  fuse_pass(g02, passes[0], prm, 1e-4);
+  fuse_pass(g02, passes[2], prm, 1e-4);
+  fuse_pass(g1, passes[1], prm, 1e-4);
+  g3.merge(g02);
+  g3.merge(g1);
+  expect_same(all, g3, 1e-9);
+  // And through GeoTIFF files (float32 bands: elevations agree to float32 precision).
+  const std::string dir = test::fresh_dir();
+  io::write_elevation_geotiff(a, dir + "/a.tif");
+  io::write_elevation_geotiff(b, dir + "/b.tif");
+  io::write_elevation_geotiff(all, dir + "/all.tif");
+  ElevationGrid fa = io::read_elevation_geotiff(dir + "/a.tif");
+  fa.merge(io::read_elevation_geotiff(dir + "/b.tif"));
+  expect_same(io::read_elevation_geotiff(dir + "/all.tif"), fa, 1e-6);
+}
+
+TEST(Elevation, GeoTiffRoundTripAndGdalinfo) {
+  ElevationGrid g(0.25, 0.05);
+  g.add(1.1, -2.3, 0.5, 1e-4, 0);
+  g.add(3.9, 4.4, 1.5, 1e-4, 0);
+  const std::string dir = test::fresh_dir();
+  io::write_elevation_geotiff(g, dir + "/e.tif");
+  expect_same(g, io::read_elevation_geotiff(dir + "/e.tif"), 1e-6);
+  // gdalinfo (Debian's gdal-bin) sees the bands, nodata and north-up geotransform of DESIGN.md.
+  const std::string cmd = "gdalinfo " + dir + "/e.tif > " + dir + "/info.txt 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  const std::string info = test::read_text(dir + "/info.txt");
+  EXPECT_NE(info.find("Origin = (1.000000000000000,4.500000000000000)"), std::string::npos) << info;
+  EXPECT_NE(info.find("Pixel Size = (0.250000000000000,-0.250000000000000)"), std::string::npos) << info;
+  for (const char* band : {"Description = elevation", "Description = variance", "Description = count", "Description = min",
+                           "Description = max"})
+    EXPECT_NE(info.find(band), std::string::npos) << band;
+  EXPECT_NE(info.find("NoData Value=nan"), std::string::npos);
+  EXPECT_NE(info.find("Type=Float32"), std::string::npos);
+}
