@@ -4,6 +4,7 @@
 
 #include "pcdp/stage.hpp"
 #include "pcdp/stages/fuse_elevation.hpp"
+#include "pcdp/stages/fuse_octomap.hpp"
 #include "pcdp/stages/register.hpp"
 #include "pcdp/stages/reject_mixed_pixels.hpp"
 #include "pcdp/stages/reject_occlusion.hpp"
@@ -16,6 +17,7 @@ const std::vector<StageInfo>& builtin_stages() {
       reject_occlusion_stage_info(),
       reject_mixed_pixels_stage_info(),
       fuse_elevation_stage_info(),
+      fuse_octomap_stage_info(),
   };
   return stages;
 }

@@ -1,0 +1,35 @@
+// Batched OctoMap insertion with a sensor origin per return (the laser position at its line).
+//
+// Per pass: every kept return casts a ray from its own origin (OctoMap's computeRayKeys, the same
+// keys insertPointCloud uses); the free keys of all its rays and the occupied keys of all its
+// endpoints are collected for the whole pass, and occupied wins over free in the same batch before
+// one update. Inserting line by line instead lets the free rays of later lines erase the
+// endpoints of earlier ones (a ground return seen at grazing incidence lies on the next line's
+// rays). Rays longer than max_range are cut there and mark only free space, as insertPointCloud
+// does. This header includes OctoMap; the rest of the library does not need it.
+#pragma once
+
+#include <octomap/OcTree.h>
+
+#include <cstdint>
+
+namespace pcdp {
+
+struct Pass;
+
+struct OctoMapParams {
+  double resolution = 0.1;  ///< m
+  double max_range = -1.0;  ///< m; < 0: unlimited (OctoMap's default)
+  // OctoMap's defaults.
+  double prob_hit = 0.7, prob_miss = 0.4;
+  double clamping_min = 0.1192, clamping_max = 0.971;
+  double occupancy_threshold = 0.5;
+};
+
+/// A tree with the sensor model of `p`.
+octomap::OcTree make_octree(const OctoMapParams& p);
+
+/// Inserts the kept returns of a registered pass. Returns the number of rays cast.
+std::uint64_t insert_pass(octomap::OcTree& tree, const Pass& pass, const OctoMapParams& p);
+
+}  // namespace pcdp

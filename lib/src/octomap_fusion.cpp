@@ -1,0 +1,48 @@
+#include "pcdp/octomap_fusion.hpp"
+
+#include <cmath>
+
+#include "pcdp/pass.hpp"
+
+namespace pcdp {
+
+octomap::OcTree make_octree(const OctoMapParams& p) {
+  octomap::OcTree tree(p.resolution);
+  tree.setProbHit(p.prob_hit);
+  tree.setProbMiss(p.prob_miss);
+  tree.setClampingThresMin(p.clamping_min);
+  tree.setClampingThresMax(p.clamping_max);
+  tree.setOccupancyThres(p.occupancy_threshold);
+  return tree;
+}
+
+std::uint64_t insert_pass(octomap::OcTree& tree, const Pass& pass, const OctoMapParams& p) {
+  octomap::KeySet free_cells, occupied_cells;
+  octomap::KeyRay ray;
+  std::uint64_t rays = 0;
+  for (std::size_t i = 0; i < pass.size(); ++i) {
+    if (!pass.is_kept(i) || !std::isfinite(pass.x[i]) || !std::isfinite(pass.ox[i])) continue;
+    const octomap::point3d o(static_cast<float>(pass.ox[i]), static_cast<float>(pass.oy[i]), static_cast<float>(pass.oz[i]));
+    octomap::point3d e(static_cast<float>(pass.x[i]), static_cast<float>(pass.y[i]), static_cast<float>(pass.z[i]));
+    bool hit = true;
+    if (p.max_range > 0 && (e - o).norm() > p.max_range) {
+      e = o + (e - o).normalized() * static_cast<float>(p.max_range);
+      hit = false;
+    }
+    ++rays;
+    if (tree.computeRayKeys(o, e, ray)) free_cells.insert(ray.begin(), ray.end());
+    if (hit) {
+      octomap::OcTreeKey k;
+      if (tree.coordToKeyChecked(e, k)) occupied_cells.insert(k);
+    } else {
+      octomap::OcTreeKey k;  // the cut end is free too
+      if (tree.coordToKeyChecked(e, k)) free_cells.insert(k);
+    }
+  }
+  for (const auto& k : free_cells)
+    if (occupied_cells.find(k) == occupied_cells.end()) tree.updateNode(k, false);
+  for (const auto& k : occupied_cells) tree.updateNode(k, true);
+  return rays;
+}
+
+}  // namespace pcdp

@@ -1,0 +1,74 @@
+#include "pcdp/stages/fuse_octomap.hpp"
+
+#include <cstdio>
+#include <fstream>
+
+#include "pcdp/errors.hpp"
+#include "pcdp/octomap_fusion.hpp"
+#include "pcdp/pass.hpp"
+
+namespace pcdp {
+
+const OptionSchema& fuse_octomap_schema() {
+  static const OptionSchema s = {
+      opt_double("resolution", 0.1, 0.001, 100.0, "m", "leaf size of the OctoMap"),
+      opt_double("max_range", -1.0, -1.0, 1e4, "m", "rays are cut here and mark only free space (-1: unlimited)"),
+      opt_double("prob_hit", 0.7, 0.5, 1.0, "", "sensor model: occupancy probability of a hit (OctoMap default)"),
+      opt_double("prob_miss", 0.4, 0.0, 0.5, "", "sensor model: occupancy probability of a miss (OctoMap default)"),
+      opt_double("clamping_min", 0.1192, 0.0, 1.0, "", "lower clamping threshold (OctoMap default)"),
+      opt_double("clamping_max", 0.971, 0.0, 1.0, "", "upper clamping threshold (OctoMap default)"),
+      opt_double("occupancy_threshold", 0.5, 0.0, 1.0, "", "a node is occupied above this probability (OctoMap default)"),
+      opt_bool("write_ot", false, "also write map.ot (full probabilities)"),
+  };
+  return s;
+}
+
+namespace {
+class FuseOctoMapStage final : public Stage {
+ public:
+  FuseOctoMapStage(OctoMapParams p, bool write_ot) : params_(p), write_ot_(write_ot), tree_(make_octree(p)) {}
+  void process(Pass& pass, StageReport& report) override {
+    report.metrics["rays"] += static_cast<double>(insert_pass(tree_, pass, params_));
+  }
+  void finish(OutputSink& sink, StageReport& report) override {
+    tree_.updateInnerOccupancy();
+    const std::string bt = sink.staged_path("map.bt");
+    if (!tree_.writeBinary(bt)) throw std::runtime_error(bt + ": OctoMap cannot write the map");
+    if (write_ot_) {
+      const std::string ot = sink.staged_path("map.ot");
+      if (!tree_.write(ot)) throw std::runtime_error(ot + ": OctoMap cannot write the map");
+    }
+    std::size_t occupied = 0;
+    for (auto it = tree_.begin_leafs(), end = tree_.end_leafs(); it != end; ++it) occupied += tree_.isNodeOccupied(*it);
+    report.metrics["occupied_leaves"] = static_cast<double>(occupied);
+    report.metrics["nodes"] = static_cast<double>(tree_.size());
+  }
+
+ private:
+  OctoMapParams params_;
+  bool write_ot_;
+  octomap::OcTree tree_;
+};
+}  // namespace
+
+StageInfo fuse_octomap_stage_info() {
+  return {"fuse_octomap", "every pass into one OctoMap, a sensor origin per return, batched per pass (map.bt)",
+          fuse_octomap_schema(), [](const StageConfig& sc, const RunContext&) -> std::unique_ptr<Stage> {
+            const OptionValues& o = sc.options;
+            OctoMapParams p;
+            p.resolution = o.get_double("resolution");
+            p.max_range = o.get_double("max_range");
+            p.prob_hit = o.get_double("prob_hit");
+            p.prob_miss = o.get_double("prob_miss");
+            p.clamping_min = o.get_double("clamping_min");
+            p.clamping_max = o.get_double("clamping_max");
+            p.occupancy_threshold = o.get_double("occupancy_threshold");
+            if (p.clamping_min >= p.clamping_max)
+              throw ConfigError(sc.where + ": stage '" + sc.name + "' (fuse_octomap): option 'clamping_min' = " +
+                                format_value(p.clamping_min) + " must be less than 'clamping_max' = " +
+                                format_value(p.clamping_max));
+            return std::make_unique<FuseOctoMapStage>(p, o.get_bool("write_ot"));
+          }};
+}
+
+}  // namespace pcdp

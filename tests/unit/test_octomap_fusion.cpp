@@ -1,0 +1,88 @@
+#include <gtest/gtest.h>
+
+#include <set>
+
+#include "pcdp/octomap_fusion.hpp"
+#include "pcdp/pass.hpp"
+#include "pcdp/sim/bench_scenes.hpp"
+#include "pcdp/stages/register.hpp"
+
+using namespace pcdp;
+
+namespace {
+std::set<std::tuple<int, int, int>> occupied(const octomap::OcTree& t) {
+  std::set<std::tuple<int, int, int>> s;
+  for (auto it = t.begin_leafs(), end = t.end_leafs(); it != end; ++it)
+    if (t.isNodeOccupied(*it)) {
+      // Expand coarser leaves (pruned) to the finest keys they cover.
+      const int size = static_cast<int>(std::lround(it.getSize() / t.getResolution()));
+      const octomap::OcTreeKey k = it.getKey();
+      const int half = size / 2;
+      for (int dx = 0; dx < size; ++dx)
+        for (int dy = 0; dy < size; ++dy)
+          for (int dz = 0; dz < size; ++dz) s.insert({k[0] - half + dx, k[1] - half + dy, k[2] - half + dz});
+    }
+  return s;
+}
+
+std::vector<Pass> static_vehicle_passes() {
+  bench::Setting st = bench::make_setting('A', 1);
+  st.sim.motion.speed = 0.0;  // one sensor origin per pass: insertPointCloud sees the same rays
+  st.sim.motion.roll_amplitude = st.sim.motion.pitch_amplitude = 0.0;
+  st.sim.passes = 2;
+  const auto r = sim::simulate(st.sim);
+  const PoseTrack poses(r.true_poses);
+  std::vector<Pass> out;
+  for (const auto& sp : r.passes) {
+    Pass p = sp.pass;
+    register_pass(p, RegisterParams{}, st.sensor,
+                  make_transform(st.sim.mount_translation, st.sim.mount_rpy, st.sim.rpy_order), &poses);
+    out.push_back(std::move(p));
+  }
+  return out;
+}
+}  // namespace
+
+TEST(OctoMapFusion, AgreesWithInsertPointCloudFedTheSameRays) {
+  const auto passes = static_vehicle_passes();
+  OctoMapParams prm;
+  prm.max_range = 30.0;
+  octomap::OcTree ours = make_octree(prm), theirs = make_octree(prm);
+  for (const auto& p : passes) {
+    insert_pass(ours, p, prm);
+    octomap::Pointcloud cloud;
+    octomap::point3d origin;
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      if (!p.is_kept(i) || !std::isfinite(p.x[i])) continue;
+      cloud.push_back(static_cast<float>(p.x[i]), static_cast<float>(p.y[i]), static_cast<float>(p.z[i]));
+      origin = octomap::point3d(static_cast<float>(p.ox[i]), static_cast<float>(p.oy[i]), static_cast<float>(p.oz[i]));
+    }
+    theirs.insertPointCloud(cloud, origin, prm.max_range);
+  }
+  const auto a = occupied(ours), b = occupied(theirs);
+  std::size_t common = 0;
+  for (const auto& k : b) common += a.count(k);
+  std::cout << "occupied keys: ours " << a.size() << ", insertPointCloud " << b.size() << ", common " << common << "\n";
+  ASSERT_GT(b.size(), 1000u);
+  EXPECT_GE(static_cast<double>(common), 0.99 * static_cast<double>(b.size()));
+  EXPECT_GE(static_cast<double>(common), 0.99 * static_cast<double>(a.size()));
+}
+
+TEST(OctoMapFusion, InsertingLineByLineLosesOccupiedCells) {
+  const auto passes = static_vehicle_passes();
+  OctoMapParams prm;
+  octomap::OcTree batched = make_octree(prm), by_line = make_octree(prm);
+  for (const auto& p : passes) {
+    insert_pass(batched, p, prm);
+    for (std::size_t k = 0; k < p.line_count(); ++k) {  // the same rays, one line at a time
+      Pass line = p;
+      for (std::size_t i = 0; i < p.size(); ++i)
+        if (i < p.line_begin[k] || i >= p.line_begin[k + 1]) line.label[i] = Label::kOutlier;
+      insert_pass(by_line, line, prm);
+    }
+  }
+  const double nb = static_cast<double>(occupied(batched).size()), nl = static_cast<double>(occupied(by_line).size());
+  std::cout << "occupied keys: batched per pass " << nb << ", line by line " << nl << " (" << 100 * (1 - nl / nb)
+            << " % lost)\n";
+  EXPECT_LT(nl, 0.9 * nb);
+}
