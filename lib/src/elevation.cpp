@@ -6,30 +6,50 @@
 
 namespace pcdp {
 
-void ElevationGrid::absorb(ElevationCell& c, std::int32_t b, double w, double wz) {
-  if (b > c.top) {  // a new top band: the old top becomes "next" if adjacent, else both drop
-    if (b == c.top + 1) {
-      c.w_next = c.w_top;
-      c.wz_next = c.wz_top;
-    } else {
-      c.w_next = c.wz_next = 0;
+void ElevationCell::absorb(const HeightBand& b) {
+  if (b.empty()) return;
+  for (auto& x : bands)
+    if (!x.empty() && x.index == b.index) {
+      x.w += b.w;
+      x.wz += b.wz;
+      x.count += b.count;
+      return;
     }
-    c.w_top = c.wz_top = 0;
-    c.top = b;
+  // Insert keeping the highest kBands, highest first.
+  int pos = 0;
+  while (pos < kBands && !bands[static_cast<std::size_t>(pos)].empty() && bands[static_cast<std::size_t>(pos)].index > b.index) ++pos;
+  if (pos == kBands) return;  // lower than every kept band
+  for (int k = kBands - 1; k > pos; --k) bands[static_cast<std::size_t>(k)] = bands[static_cast<std::size_t>(k - 1)];
+  bands[static_cast<std::size_t>(pos)] = b;
+}
+
+void ElevationCell::surface(std::uint32_t min_support, double& w, double& wz) const {
+  w = wz = 0;
+  for (int k = 0; k < kBands; ++k) {
+    const HeightBand& b = bands[static_cast<std::size_t>(k)];
+    if (b.empty()) return;
+    if (b.count < min_support) continue;
+    w = b.w;
+    wz = b.wz;
+    if (k + 1 < kBands) {
+      const HeightBand& below = bands[static_cast<std::size_t>(k + 1)];
+      if (!below.empty() && below.index == b.index - 1) {
+        w += below.w;
+        wz += below.wz;
+      }
+    }
+    return;
   }
-  if (b == c.top) {
-    c.w_top += w;
-    c.wz_top += wz;
-  } else if (b == c.top - 1) {
-    c.w_next += w;
-    c.wz_next += wz;
-  }  // lower bands: not fused (overhang, face)
 }
 
 void ElevationGrid::add(double x, double y, double z, double var_z, std::int32_t pass) {
   ElevationCell& c = cells_[key(cell_index(x), cell_index(y))];
-  const std::int32_t b = static_cast<std::int32_t>(std::floor(z / band_));
-  absorb(c, b, 1.0 / var_z, z / var_z);
+  HeightBand b;
+  b.index = static_cast<std::int32_t>(std::floor(z / band_));
+  b.w = 1.0 / var_z;
+  b.wz = z / var_z;
+  b.count = 1;
+  c.absorb(b);
   ++c.count;
   if (pass != c.last_pass) {
     ++c.passes;
@@ -45,32 +65,7 @@ void ElevationGrid::merge(const ElevationGrid& other) {
   for (const auto& [k, o] : other.cells_) {
     if (o.empty()) continue;
     ElevationCell& c = cells_[k];
-    // Bring in the other's two bands (highest first): the result holds the top two bands of the
-    // union, whatever the order.
-    if (o.top > c.top) {
-      const ElevationCell mine = c;
-      c.top = o.top;
-      c.w_top = o.w_top;
-      c.wz_top = o.wz_top;
-      c.w_next = o.w_next;
-      c.wz_next = o.wz_next;
-      if (mine.count) {
-        if (mine.top == c.top - 1) {
-          c.w_next += mine.w_top;
-          c.wz_next += mine.wz_top;
-        }
-      }
-    } else {
-      if (o.top == c.top) {
-        c.w_top += o.w_top;
-        c.wz_top += o.wz_top;
-        c.w_next += o.w_next;
-        c.wz_next += o.wz_next;
-      } else if (o.top == c.top - 1) {
-        c.w_next += o.w_top;
-        c.wz_next += o.wz_top;
-      }
-    }
+    for (const auto& b : o.bands) c.absorb(b);
     c.count += o.count;
     c.passes += o.passes;
     c.zmin = std::min(c.zmin, o.zmin);
@@ -79,6 +74,15 @@ void ElevationGrid::merge(const ElevationGrid& other) {
 }
 
 void ElevationGrid::set_cell(std::int64_t ix, std::int64_t iy, const ElevationCell& c) { cells_[key(ix, iy)] = c; }
+
+bool ElevationGrid::surface(const ElevationCell& c, double& elevation, double& variance) const {
+  double w, wz;
+  c.surface(min_support_, w, wz);
+  if (w <= 0) return false;
+  elevation = wz / w;
+  variance = 1.0 / w;
+  return true;
+}
 
 const ElevationCell* ElevationGrid::find(std::int64_t ix, std::int64_t iy) const {
   const auto it = cells_.find(key(ix, iy));

@@ -65,6 +65,17 @@ RunSummary Pipeline::run(const ProgressFn& progress) {
   const std::string report_tmp = out.staged_path("report.json");
 
   const std::size_t np = cfg.scans.size();
+  // Prepass: stages that need every pass's evidence first (passes are streamed, never all held).
+  for (std::size_t s = 0; s < stages_.size(); ++s) {
+    if (!stages_[s]->wants_prepass()) continue;
+    for (std::size_t k = 0; k < np; ++k) {
+      if (progress) progress({k, np, cfg.scans[k], "prepass " + cfg.stages[s].name});
+      Pass pass = read_pass(cfg.scans[k], k);
+      StageReport scratch;
+      for (std::size_t e = 0; e < s; ++e) stages_[e]->process(pass, scratch);
+      stages_[s]->prepass(pass);
+    }
+  }
   std::int64_t last_line = -1;
   std::string last_file;
   for (std::size_t k = 0; k < np; ++k) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "pcdp/stage.hpp"
+#include "pcdp/stages/check_consistency.hpp"
 #include "pcdp/stages/fuse_elevation.hpp"
 #include "pcdp/stages/fuse_octomap.hpp"
 #include "pcdp/stages/register.hpp"
@@ -16,6 +17,7 @@ const std::vector<StageInfo>& builtin_stages() {
       register_stage_info(),
       reject_occlusion_stage_info(),
       reject_mixed_pixels_stage_info(),
+      check_consistency_stage_info(),
       fuse_elevation_stage_info(),
       fuse_octomap_stage_info(),
   };

@@ -454,3 +454,59 @@ motion: {speed: 0.0}
   const std::string table = test::read_text(dir + "/e.csv");
   EXPECT_EQ(std::count(table.begin(), table.end(), '\n'), 8);  // header + 7 ranges
 }
+
+// ---- the whole chain on the sample scene ---------------------------------------------------------
+
+namespace {
+nlohmann::json run_and_evaluate(const std::vector<std::string>& extra, const std::string& yaml, const std::string& out) {
+  std::vector<std::string> args = {"run", yaml, "--output-dir", out, "-q"};
+  args.insert(args.end(), extra.begin(), extra.end());
+  const auto res = run_cli(args);
+  EXPECT_EQ(res.exit_code, 0) << res.err;
+  EXPECT_EQ(run_cli({"evaluate", "--truth", std::string(PCDP_SOURCE_DIR) + "/sample_scans", "--run", out, "-q"}).exit_code, 0);
+  return nlohmann::json::parse(test::read_text(out + "/evaluation.json"));
+}
+}  // namespace
+
+TEST(FullChain, FusingAllPassesBeatsEverySinglePass) {
+  const std::string yaml = std::string(PCDP_SOURCE_DIR) + "/pipelines/nodding_terrain.yaml";
+  const std::string dir = test::fresh_dir();
+  const auto all = run_and_evaluate({}, yaml, dir + "/all");
+  const double rmse_all = all["elevation"]["rmse"], cov_all = all["elevation"]["coverage"];
+  EXPECT_LE(rmse_all, 0.03);  // the target: 3 cm over observed cells away from box edges
+  for (int k = 0; k < 4; ++k) {
+    const auto one = run_and_evaluate({"--set", "input.scans=" + std::string(PCDP_SOURCE_DIR) + "/sample_scans/pass_00" +
+                                                    std::to_string(k) + ".pcd"},
+                                      yaml, dir + "/single" + std::to_string(k));
+    EXPECT_LT(rmse_all, one["elevation"]["rmse"].get<double>()) << "pass " << k;
+    EXPECT_GT(cov_all, one["elevation"]["coverage"].get<double>()) << "pass " << k;
+  }
+  EXPECT_TRUE(fs::exists(dir + "/all/map.bt"));
+  EXPECT_TRUE(fs::exists(dir + "/all/elevation.png"));
+}
+
+TEST(FullChain, ConsistencyRaisesRecallWithinTheFalseRejectionBudget) {
+  const std::string dir = test::fresh_dir();
+  const std::string yaml = std::string(PCDP_SOURCE_DIR) + "/pipelines/nodding_terrain.yaml";
+  std::string text = test::read_text(yaml);
+  const std::string line = "  - type: check_consistency\n";
+  ASSERT_NE(text.find(line), std::string::npos);
+  text.replace(text.find(line), line.size(), "");
+  // Paths in the file are relative to its folder: keep the copy beside the original's inputs.
+  const std::string without = dir + "/no_consistency.yaml";
+  std::string fixed = text;
+  const std::string rel = "../sample_scans/";
+  for (std::size_t p = fixed.find(rel); p != std::string::npos; p = fixed.find(rel, p))
+    fixed.replace(p, rel.size(), std::string(PCDP_SOURCE_DIR) + "/sample_scans/");
+  test::write_text(without, fixed);
+  const auto with_c = run_and_evaluate({}, yaml, dir + "/with");
+  const auto without_c = run_and_evaluate({}, without, dir + "/without");
+  const double mixed_with = with_c["labels"]["mixed_pixel"]["recall"], mixed_without = without_c["labels"]["mixed_pixel"]["recall"];
+  const double low_with = with_c["labels"]["low_amplitude"]["recall"], low_without = without_c["labels"]["low_amplitude"]["recall"];
+  std::cout << "mixed-pixel recall " << mixed_without << " -> " << mixed_with << ", low-amplitude " << low_without << " -> "
+            << low_with << ", valid rejected " << without_c["valid"]["false_rejection"] << " -> "
+            << with_c["valid"]["false_rejection"] << "\n";
+  EXPECT_GT(mixed_with, mixed_without);
+  EXPECT_GE(low_with, low_without);
+  EXPECT_LE(with_c["valid"]["false_rejection"].get<double>(), 0.01);
+}

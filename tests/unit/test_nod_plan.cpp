@@ -46,9 +46,13 @@ TEST(NodPlan, VehicleMotionAndDeadZone) {
   const NodPlan plan = plan_nod(p);
   EXPECT_NEAR(plan.dead_zone_angle, std::atan2(2.0, 3.0), 1e-12);
   for (const auto& r : plan.rows) {
-    if (r.ground_distance > 0.2 + 2.0 * 0.0133) EXPECT_GT(r.step_down, r.step_up);  // motion works against the downward nod (5.1)
+    if (r.ground_distance > 0.2 + 2.0 * 0.0133) {
+      EXPECT_GT(r.step_down, r.step_up);  // motion works against the downward nod (5.1)
+    }
     EXPECT_EQ(r.in_dead_zone, r.angle > plan.dead_zone_angle);
-    if (r.in_dead_zone) EXPECT_FALSE(r.achievable);
+    if (r.in_dead_zone) {
+      EXPECT_FALSE(r.achievable);
+    }
   }
   // A vehicle faster than d / tau outruns an upward nod: nothing is achievable.
   p.speed = 20.0;

@@ -411,7 +411,8 @@ int cmd_merge(const std::vector<std::string>& inputs, const std::string& output,
   ElevationGrid grid = io::read_elevation_geotiff(inputs[0]);
   for (std::size_t k = 1; k < inputs.size(); ++k) {
     const ElevationGrid other = io::read_elevation_geotiff(inputs[k]);
-    if (std::fabs(other.resolution() - grid.resolution()) > 1e-9 || std::fabs(other.band() - grid.band()) > 1e-9)
+    if (std::fabs(other.resolution() - grid.resolution()) > 1e-9 || std::fabs(other.band() - grid.band()) > 1e-9 ||
+        other.min_support() != grid.min_support())
       throw InputError(inputs[k] + ": resolution " + format_value(other.resolution()) + " m and band " +
                        format_value(other.band()) + " m differ from " + inputs[0] + "'s (" + format_value(grid.resolution()) +
                        " m, " + format_value(grid.band()) + " m); grids merge only on the same grid");

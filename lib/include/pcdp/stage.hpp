@@ -49,6 +49,11 @@ class Stage {
   virtual void process(Pass& pass, StageReport& report) = 0;
   /// After the last pass: write products, add run-level metrics.
   virtual void finish(OutputSink& /*sink*/, StageReport& /*report*/) {}
+  /// Stages that need evidence from every pass before labelling any (check_consistency) return
+  /// true; the pipeline then first streams every pass through the stages before them and hands it
+  /// to prepass(), then runs the whole chain as usual.
+  virtual bool wants_prepass() const { return false; }
+  virtual void prepass(const Pass& /*pass*/) {}
 };
 
 /// Shared, read-only resources of a run, loaded in the prepare phase.

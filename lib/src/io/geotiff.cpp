@@ -16,9 +16,15 @@
 namespace pcdp::io {
 
 namespace {
-constexpr int kBands = 11;
-const char* const kBandNames[kBands] = {"elevation", "variance", "count", "min", "max", "top_band",
-                                        "top_weight", "top_mean", "next_weight", "next_mean", "passes"};
+constexpr int kFixed = 6;  // elevation variance count min max passes
+constexpr int kPerBand = 4;  // index weight mean count, for each kept height band
+constexpr int kBands = kFixed + kPerBand * ElevationCell::kBands;
+std::string band_name(int b) {
+  static const char* const fixed[kFixed] = {"elevation", "variance", "count", "min", "max", "passes"};
+  if (b < kFixed) return fixed[b];
+  static const char* const per[kPerBand] = {"index", "weight", "mean", "count"};
+  return "height_band_" + std::to_string((b - kFixed) / kPerBand) + "_" + per[(b - kFixed) % kPerBand];
+}
 
 void gdal_init() {
   static std::once_flag once;
@@ -59,7 +65,8 @@ void write_elevation_geotiff(const ElevationGrid& grid, const std::string& path)
   ds->SetMetadataItem("PCDP_BAND", buf);
   std::snprintf(buf, sizeof buf, "%.17g", res);
   ds->SetMetadataItem("PCDP_RESOLUTION", buf);
-  ds->SetMetadataItem("PCDP_CONTRACT", "bands 1-5 per DESIGN.md; 6-11 exact merge state");
+  ds->SetMetadataItem("PCDP_MIN_SUPPORT", std::to_string(grid.min_support()).c_str());
+  ds->SetMetadataItem("PCDP_CONTRACT", "bands 1-5 per DESIGN.md; 6 passes; 7-22 the four highest height bands (exact merge state)");
   const float nan = std::numeric_limits<float>::quiet_NaN();
   std::vector<float> data(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny));
   for (int b = 0; b < kBands; ++b) {
@@ -68,23 +75,30 @@ void write_elevation_geotiff(const ElevationGrid& grid, const std::string& path)
       if (c.empty()) return;
       const std::size_t col = static_cast<std::size_t>(ix - ix0), row = static_cast<std::size_t>(iy1 - iy);
       float& v = data[row * static_cast<std::size_t>(nx) + col];
-      const bool fused = c.weight() > 0;
+      double e = 0, var = 0;
+      const bool fused = grid.surface(c, e, var);
+      if (b >= kFixed) {
+        const HeightBand& hb = c.bands[static_cast<std::size_t>((b - kFixed) / kPerBand)];
+        if (hb.empty()) return;
+        switch ((b - kFixed) % kPerBand) {
+          case 0: v = static_cast<float>(hb.index); break;
+          case 1: v = static_cast<float>(hb.w); break;
+          case 2: v = static_cast<float>(hb.wz / hb.w); break;
+          default: v = static_cast<float>(hb.count); break;
+        }
+        return;
+      }
       switch (b) {
-        case 0: v = fused ? static_cast<float>(c.elevation()) : nan; break;
-        case 1: v = fused ? static_cast<float>(c.variance()) : nan; break;
+        case 0: v = fused ? static_cast<float>(e) : nan; break;
+        case 1: v = fused ? static_cast<float>(var) : nan; break;
         case 2: v = static_cast<float>(c.count); break;
         case 3: v = c.zmin; break;
         case 4: v = c.zmax; break;
-        case 5: v = static_cast<float>(c.top); break;
-        case 6: v = static_cast<float>(c.w_top); break;
-        case 7: v = c.w_top > 0 ? static_cast<float>(c.wz_top / c.w_top) : nan; break;
-        case 8: v = static_cast<float>(c.w_next); break;
-        case 9: v = c.w_next > 0 ? static_cast<float>(c.wz_next / c.w_next) : nan; break;
         default: v = static_cast<float>(c.passes); break;
       }
     });
     GDALRasterBand* band = ds->GetRasterBand(b + 1);
-    band->SetDescription(kBandNames[b]);
+    band->SetDescription(band_name(b).c_str());
     band->SetNoDataValue(std::numeric_limits<double>::quiet_NaN());
     if (band->RasterIO(GF_Write, 0, 0, nx, ny, data.data(), nx, ny, GDT_Float32, 0, 0) != CE_None) {
       GDALClose(ds);
@@ -102,12 +116,14 @@ ElevationGrid read_elevation_geotiff(const std::string& path) {
   if (!ds) throw InputError(path + ": cannot open as a GeoTIFF");
   const char* r = ds->GetMetadataItem("PCDP_RESOLUTION");
   const char* bnd = ds->GetMetadataItem("PCDP_BAND");
-  if (!r || !bnd || ds->GetRasterCount() != kBands) {
+  const char* sup = ds->GetMetadataItem("PCDP_MIN_SUPPORT");
+  if (!r || !bnd || !sup || ds->GetRasterCount() != kBands) {
     GDALClose(ds);
-    throw InputError(path + ": not an elevation grid of pcd_pipeline (needs its 11 bands and PCDP_* metadata to merge)");
+    throw InputError(path + ": not an elevation grid of pcd_pipeline (needs its " + std::to_string(kBands) +
+                     " bands and PCDP_* metadata to merge)");
   }
   const double res = std::atof(r);
-  ElevationGrid grid(res, std::atof(bnd));
+  ElevationGrid grid(res, std::atof(bnd), static_cast<std::uint32_t>(std::atoi(sup)));
   double gt[6];
   ds->GetGeoTransform(gt);
   const int nx = ds->GetRasterXSize(), ny = ds->GetRasterYSize();
@@ -128,12 +144,17 @@ ElevationGrid read_elevation_geotiff(const std::string& path) {
       c.count = static_cast<std::uint32_t>(bands[2][i]);
       c.zmin = bands[3][i];
       c.zmax = bands[4][i];
-      c.top = static_cast<std::int32_t>(bands[5][i]);
-      c.w_top = bands[6][i];
-      c.wz_top = c.w_top > 0 ? c.w_top * static_cast<double>(bands[7][i]) : 0.0;
-      c.w_next = bands[8][i];
-      c.wz_next = c.w_next > 0 ? c.w_next * static_cast<double>(bands[9][i]) : 0.0;
-      c.passes = static_cast<std::uint32_t>(bands[10][i]);
+      c.passes = static_cast<std::uint32_t>(bands[5][i]);
+      for (int k = 0; k < ElevationCell::kBands; ++k) {
+        const std::size_t b0 = static_cast<std::size_t>(kFixed + kPerBand * k);
+        if (std::isnan(bands[b0 + 3][i]) || bands[b0 + 3][i] <= 0) continue;
+        HeightBand hb;
+        hb.index = static_cast<std::int32_t>(bands[b0][i]);
+        hb.w = bands[b0 + 1][i];
+        hb.wz = hb.w * static_cast<double>(bands[b0 + 2][i]);
+        hb.count = static_cast<std::uint32_t>(bands[b0 + 3][i]);
+        c.bands[static_cast<std::size_t>(k)] = hb;
+      }
       grid.set_cell(ix0 + col, iy1 - row, c);
     }
   return grid;
@@ -212,8 +233,8 @@ void write_elevation_png(const ElevationGrid& grid, const std::string& path) {
   std::vector<double> z(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny), std::numeric_limits<double>::quiet_NaN());
   std::vector<double> vals;
   grid.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
-    if (c.weight() <= 0) return;
-    const double e = c.elevation();
+    double e = 0, var = 0;
+    if (!grid.surface(c, e, var)) return;
     z[static_cast<std::size_t>(iy1 - iy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(ix - ix0)] = e;
     vals.push_back(e);
   });

@@ -13,6 +13,7 @@ const OptionSchema& fuse_elevation_schema() {
   static const OptionSchema s = {
       opt_double("resolution", 0.1, 0.001, 1000.0, "m", "cell size of the grid"),
       opt_double("band", 0.05, 0.001, 100.0, "m", "height band of the top-surface gate (points more than one band below the top band are not fused)"),
+      opt_int("min_support", 2, 1.0, 1000.0, "points", "the surface is the highest height band with at least this many points"),
       opt_string("extent", "", "xmin,ymin,xmax,ymax in map metres; empty: the grid grows with the data"),
       opt_bool("png", true, "also draw elevation.png"),
   };
@@ -34,13 +35,16 @@ namespace {
 class FuseElevationStage final : public Stage {
  public:
   FuseElevationStage(FuseElevationParams p, double fallback_var)
-      : params_(p), fallback_var_(fallback_var), grid_(p.resolution, p.band) {}
+      : params_(p), fallback_var_(fallback_var), grid_(p.resolution, p.band, p.min_support) {}
   void process(Pass& pass, StageReport&) override { fuse_pass(grid_, pass, params_, fallback_var_); }
   void finish(OutputSink& sink, StageReport& report) override {
     io::write_elevation_geotiff(grid_, sink.staged_path("elevation.tif"));
     if (params_.png) io::write_elevation_png(grid_, sink.staged_path("elevation.png"));
     std::size_t fused = 0;
-    grid_.for_each([&](std::int64_t, std::int64_t, const ElevationCell& c) { fused += c.weight() > 0; });
+    grid_.for_each([&](std::int64_t, std::int64_t, const ElevationCell& c) {
+      double e, v;
+      fused += grid_.surface(c, e, v);
+    });
     report.metrics["cells"] = static_cast<double>(fused);
   }
 
@@ -61,6 +65,7 @@ StageInfo fuse_elevation_stage_info() {
             p.resolution = o.get_double("resolution");
             p.band = o.get_double("band");
             p.png = o.get_bool("png");
+            p.min_support = static_cast<std::uint32_t>(o.get_int("min_support"));
             const std::string ext = o.get_string("extent");
             if (!ext.empty()) {
               if (std::sscanf(ext.c_str(), "%lf,%lf,%lf,%lf", &p.xmin, &p.ymin, &p.xmax, &p.ymax) != 4 || !(p.xmax > p.xmin) ||

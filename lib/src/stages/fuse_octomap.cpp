@@ -1,5 +1,8 @@
 #include "pcdp/stages/fuse_octomap.hpp"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <cstdio>
 #include <fstream>
 
@@ -32,11 +35,27 @@ class FuseOctoMapStage final : public Stage {
   }
   void finish(OutputSink& sink, StageReport& report) override {
     tree_.updateInnerOccupancy();
+    // liboctomap (as Debian builds it) logs " done." to stderr while writing binary trees; a
+    // tool run with --quiet must print nothing, so stderr is muted around that one call.
     const std::string bt = sink.staged_path("map.bt");
-    if (!tree_.writeBinary(bt)) throw std::runtime_error(bt + ": OctoMap cannot write the map");
+    {
+      std::ofstream out(bt, std::ios::binary);
+      std::fflush(stderr);
+      const int saved = ::dup(2), devnull = ::open("/dev/null", O_WRONLY);
+      if (saved >= 0 && devnull >= 0) ::dup2(devnull, 2);
+      const bool ok = out && tree_.writeBinaryConst(out) && out.flush();
+      std::fflush(stderr);
+      if (saved >= 0) {
+        ::dup2(saved, 2);
+        ::close(saved);
+      }
+      if (devnull >= 0) ::close(devnull);
+      if (!ok) throw std::runtime_error(bt + ": cannot write the map");
+    }
     if (write_ot_) {
       const std::string ot = sink.staged_path("map.ot");
-      if (!tree_.write(ot)) throw std::runtime_error(ot + ": OctoMap cannot write the map");
+      std::ofstream out(ot, std::ios::binary);
+      if (!out || !tree_.write(out) || !out.flush()) throw std::runtime_error(ot + ": cannot write the map");
     }
     std::size_t occupied = 0;
     for (auto it = tree_.begin_leafs(), end = tree_.end_leafs(); it != end; ++it) occupied += tree_.isNodeOccupied(*it);

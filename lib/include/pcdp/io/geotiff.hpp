@@ -1,9 +1,10 @@
 // The elevation grid on disk: a GeoTIFF written through GDAL with the bands of DESIGN.md
 // (1 elevation m, 2 variance m^2, 3 count, 4 min m, 5 max m; float32, NaN = unobserved, north-up
-// geotransform in map metres, map x = east, map y = north), plus the bands that make grids
-// mergeable exactly (6 top band index, 7 sum 1/var of the top band, 8 sum z/var of the top band,
-// 9 and 10 the same for the band below, 11 passes; float64 so that merges lose nothing). Metadata
-// records the resolution and the band height. Written to a temporary name, then renamed.
+// geotransform in map metres, map x = east, map y = north), then 6 passes and, for each of the
+// cell's four highest height bands, its index, sum of 1/var, mean height and count (bands 7-22:
+// the exact merge state). GeoTIFF bands share one type, so these are float32 too: merged
+// elevations agree to float32 precision. Metadata records resolution, band height and
+// min_support. Written to a temporary name, then renamed.
 #pragma once
 
 #include <string>

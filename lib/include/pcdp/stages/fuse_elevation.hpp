@@ -14,6 +14,7 @@ struct Pass;
 struct FuseElevationParams {
   double resolution = 0.1;  ///< m
   double band = 0.05;       ///< m, the height band of the top-surface gate
+  std::uint32_t min_support = 2;  ///< points in the highest band that make it the surface
   bool has_extent = false;  ///< otherwise the grid grows with the data
   double xmin = 0, ymin = 0, xmax = 0, ymax = 0;
   bool png = true;

@@ -1,0 +1,50 @@
+// Stage `check_consistency`: with several passes, label `inconsistent` the kept returns that
+// other passes contradict: rays of other passes went through the return's voxel (they saw free
+// space there, from another viewpoint), and no other pass returned from within hit_radius
+// voxels of it. A second line of defence against mixed pixels and false ranges that single-scan
+// filters miss.
+//
+// Evidence is collected in a prepass over every pass (the pipeline streams the passes twice):
+// each kept return's ray is walked voxel by voxel (3-D DDA) from its own sensor origin up to
+// `margin` short of its end, marking the voxels free for that pass; its end voxel is marked hit.
+#pragma once
+
+#include <cstdint>
+#include <unordered_map>
+
+#include "pcdp/stage.hpp"
+
+namespace pcdp {
+
+struct Pass;
+
+struct ConsistencyParams {
+  double resolution = 0.1;  ///< m, voxel size
+  double margin = 0.5;      ///< m, rays stop this short of their end
+  int min_passes = 1;       ///< other passes that must have seen free space through the return
+  double max_range = 30.0;  ///< m, longer rays are not walked
+  int hit_radius = 2;       ///< voxels: a return from another pass this close makes a surface
+};
+
+const OptionSchema& check_consistency_schema();
+
+/// Free-space and hit evidence per voxel, with the passes (modulo 64) that gave it.
+class ConsistencyEvidence {
+ public:
+  explicit ConsistencyEvidence(const ConsistencyParams& p) : p_(p) {}
+  void add_pass(const Pass& pass);
+  /// Labels the contradicted kept returns of `pass`; returns how many.
+  std::size_t label(Pass& pass) const;
+
+ private:
+  struct Voxel {
+    std::uint64_t free = 0, hit = 0;  ///< bit (pass mod 64)
+  };
+  std::uint64_t key(std::int64_t x, std::int64_t y, std::int64_t z) const;
+  ConsistencyParams p_;
+  std::unordered_map<std::uint64_t, Voxel> voxels_;
+};
+
+StageInfo check_consistency_stage_info();
+
+}  // namespace pcdp
