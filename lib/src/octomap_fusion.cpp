@@ -1,6 +1,8 @@
 #include "pcdp/octomap_fusion.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "pcdp/pass.hpp"
 
@@ -17,6 +19,7 @@ octomap::OcTree make_octree(const OctoMapParams& p) {
 }
 
 std::uint64_t insert_pass(octomap::OcTree& tree, const Pass& pass, const OctoMapParams& p) {
+  // The tree is updated lazily (leaves only) and its inner nodes once at the end of the pass.
   octomap::KeySet free_cells, occupied_cells;
   octomap::KeyRay ray;
   std::uint64_t rays = 0;
@@ -31,17 +34,13 @@ std::uint64_t insert_pass(octomap::OcTree& tree, const Pass& pass, const OctoMap
     }
     ++rays;
     if (tree.computeRayKeys(o, e, ray)) free_cells.insert(ray.begin(), ray.end());
-    if (hit) {
-      octomap::OcTreeKey k;
-      if (tree.coordToKeyChecked(e, k)) occupied_cells.insert(k);
-    } else {
-      octomap::OcTreeKey k;  // the cut end is free too
-      if (tree.coordToKeyChecked(e, k)) free_cells.insert(k);
-    }
+    octomap::OcTreeKey k;
+    if (tree.coordToKeyChecked(e, k)) (hit ? occupied_cells : free_cells).insert(k);  // a cut end is free
   }
   for (const auto& k : free_cells)
-    if (occupied_cells.find(k) == occupied_cells.end()) tree.updateNode(k, false);
-  for (const auto& k : occupied_cells) tree.updateNode(k, true);
+    if (occupied_cells.find(k) == occupied_cells.end()) tree.updateNode(k, false, true);
+  for (const auto& k : occupied_cells) tree.updateNode(k, true, true);
+  tree.updateInnerOccupancy();
   return rays;
 }
 
