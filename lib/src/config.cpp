@@ -180,7 +180,9 @@ OptionValues validate_block(const Context& ctx, const YAML::Node& block, const O
       fail(ctx.where(key_prefix, block), what + " must be a mapping of options, but it is " + node_kind(block));
     std::vector<std::pair<std::string, YAML::Node>> flat;
     flatten(ctx, "", key_prefix, block, flat);
-    for (const auto& [key, node] : flat) {
+    for (const auto& entry : flat) {
+      const std::string& key = entry.first;
+      const YAML::Node& node = entry.second;
       if (skip.count(key)) continue;
       const std::string full = key_prefix.empty() ? key : key_prefix + "." + key;
       auto it = std::find_if(schema.begin(), schema.end(), [&](const OptionSpec& s) { return s.name == key; });
@@ -211,6 +213,26 @@ OptionValues validate_block(const Context& ctx, const YAML::Node& block, const O
 }
 
 YAML::Node load_yaml(const std::string& text, const std::string& source) {
+  // Flow-style nesting ([[[... or {{{...) is checked before parsing: the parser's own guard only
+  // says "bad file", and a pipeline needs a handful of levels.
+  constexpr int kMaxDepth = 64;
+  int depth = 0, line = 1, col = 0;
+  bool quoted = false;
+  for (char ch : text) {
+    ++col;
+    if (ch == '\n') {
+      ++line;
+      col = 0;
+    } else if (ch == '"' || ch == '\'') {
+      quoted = !quoted;
+    } else if (!quoted && (ch == '[' || ch == '{')) {
+      if (++depth > kMaxDepth)
+        throw ConfigError(source + ":" + std::to_string(line) + ":" + std::to_string(col) +
+                          ": not valid YAML: nested more than " + std::to_string(kMaxDepth) + " levels deep");
+    } else if (!quoted && (ch == ']' || ch == '}')) {
+      depth = std::max(0, depth - 1);
+    }
+  }
   try {
     return YAML::Load(text);
   } catch (const YAML::Exception& e) {

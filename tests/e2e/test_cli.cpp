@@ -2,7 +2,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <csignal>
 #include <filesystem>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <regex>
@@ -509,4 +512,32 @@ TEST(FullChain, ConsistencyRaisesRecallWithinTheFalseRejectionBudget) {
   EXPECT_GT(mixed_with, mixed_without);
   EXPECT_GE(low_with, low_without);
   EXPECT_LE(with_c["valid"]["false_rejection"].get<double>(), 0.01);
+}
+
+TEST(Cli, AKilledRunLeavesNoFileThatLooksComplete) {
+  // A run long enough to interrupt: many passes of the sample scene's sensor.
+  const std::string dir = test::fresh_dir();
+  test::write_text(dir + "/scene.yaml", "passes: 40\nlines_per_pass: 150\nscanner: {beams: 241, subrays: 1}\n");
+  ASSERT_EQ(run_cli({"simulate", dir + "/scene.yaml", "--output-dir", dir + "/data", "-q"}).exit_code, 0);
+  test::write_text(dir + "/p.yaml", "input: {scans: data/pass_*.pcd, poses: data/poses.csv}\noutput_dir: out\nstages:\n"
+                                    "  - type: register\n  - type: check_consistency\n  - type: fuse_octomap\n");
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    const std::string yaml = dir + "/p.yaml";
+    execl(PCDP_CLI_PATH, PCDP_CLI_PATH, "run", yaml.c_str(), "-q", static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  usleep(400 * 1000);  // mid-way: the prepass and the first passes
+  kill(pid, SIGKILL);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFSIGNALED(status)) << "the run finished before it could be interrupted; make it longer";
+  // Nothing under a final name: only temporary files (dot-prefixed, .tmp-PID), if anything.
+  if (fs::exists(dir + "/out"))
+    for (const auto& e : fs::directory_iterator(dir + "/out")) {
+      const std::string name = e.path().filename().string();
+      EXPECT_EQ(name.rfind(".", 0), 0u) << name;
+      EXPECT_NE(name.find(".tmp"), std::string::npos) << name;
+    }
 }

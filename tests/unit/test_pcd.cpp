@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <sstream>
 
 #include "pcdp/errors.hpp"
 #include "pcdp/io/pcd.hpp"
@@ -196,4 +197,58 @@ TEST(Lzf, DecodesLiteralsAndOverlappingBackReferences) {
   EXPECT_FALSE(io::lzf_decompress(bad_ref, sizeof bad_ref, out, 4));
   const std::uint8_t trunc[] = {5, 'a', 'b'};
   EXPECT_FALSE(io::lzf_decompress(trunc, sizeof trunc, out, 6));
+}
+
+TEST(Pcd, NanAndInfInEveryNumericField) {
+  // range NaN means no return and is valid; amplitude NaN is valid only without a return;
+  // everything else non-finite is refused, naming the field.
+  const char* fields[] = {"line", "beam", "range", "bearing", "amplitude", "nod", "stamp"};
+  for (int f = 0; f < 7; ++f) {
+    for (const char* bad : {"nan", "inf", "-inf"}) {
+      std::vector<std::string> rows = kRows;
+      std::istringstream in(rows[3]);
+      std::vector<std::string> cells;
+      for (std::string c; in >> c;) cells.push_back(c);
+      cells[static_cast<std::size_t>(f)] = bad;
+      std::string row;
+      for (const auto& c : cells) row += c + " ";
+      rows[3] = row;
+      const std::string e = error_of(ascii_pcd(rows));
+      const bool allowed = f == 2 && std::string(bad) == "nan";
+      if (allowed) {
+        EXPECT_EQ(e, "(no error)") << fields[f] << " " << bad;
+      } else {
+        EXPECT_NE(e.find(std::string("'") + fields[f] + "'"), std::string::npos) << fields[f] << " " << bad << ": " << e;
+      }
+    }
+  }
+}
+
+TEST(Pcd, BinaryCompressedWithABadLength) {
+  const std::string header =
+      "VERSION 0.7\nFIELDS line beam range bearing amplitude nod stamp\nSIZE 4 4 4 4 4 4 8\nTYPE U U F F F F F\n"
+      "COUNT 1 1 1 1 1 1 1\nWIDTH 10\nHEIGHT 1\nPOINTS 10\nDATA binary_compressed\n";
+  std::string body = header;
+  const std::uint32_t csize = 500, usize = 320;  // 10 points x 32 bytes; 500 compressed bytes claimed
+  body.append(reinterpret_cast<const char*>(&csize), 4);
+  body.append(reinterpret_cast<const char*>(&usize), 4);
+  body.append(40, '\x01');
+  std::string e = error_of(body);
+  EXPECT_NE(e.find("binary_compressed declares 500 compressed bytes but 40 follow"), std::string::npos) << e;
+  // A wrong uncompressed size.
+  body = header;
+  const std::uint32_t c2 = 40, u2 = 999;
+  body.append(reinterpret_cast<const char*>(&c2), 4);
+  body.append(reinterpret_cast<const char*>(&u2), 4);
+  body.append(40, '\x01');
+  e = error_of(body);
+  EXPECT_NE(e.find("uncompressed size 999 disagrees with the header claims 10 points (320 bytes)"), std::string::npos) << e;
+  // Garbage that does not decode.
+  body = header;
+  const std::uint32_t c3 = 8, u3 = 320;
+  body.append(reinterpret_cast<const char*>(&c3), 4);
+  body.append(reinterpret_cast<const char*>(&u3), 4);
+  body.append("\xff\xff\xff\xff\xff\xff\xff\xff", 8);
+  e = error_of(body);
+  EXPECT_NE(e.find("corrupt LZF data (does not decode to 320 bytes)"), std::string::npos) << e;
 }

@@ -147,3 +147,19 @@ TEST(Register, WithoutPosesTheVehicleFrameIsTheMapFrame) {
   EXPECT_NEAR(p.ox[0], f.cfg.mount_translation.x(), 1e-12);
   EXPECT_NEAR(p.oz[0], f.cfg.mount_translation.z(), 1e-12);
 }
+
+TEST(Register, ABlindedSensorIsReportedWithItsLineRange) {
+  Fixture f;
+  Pass p = f.run.passes[0].pass;
+  const std::size_t first = 10, last = 17;  // lines 10..17 return nothing (sunlight, Broten & Collier 7.5)
+  for (std::size_t k = first; k <= last; ++k)
+    for (std::size_t i = p.line_begin[k]; i < p.line_begin[k + 1]; ++i) p.range[i] = 0.0f;
+  const auto w = blind_runs(p, 5);
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_NE(w[0].find("lines " + std::to_string(p.line[p.line_begin[first]]) + "-" + std::to_string(p.line[p.line_begin[last]]) +
+                      " (8 lines) returned nothing"),
+            std::string::npos)
+      << w[0];
+  EXPECT_TRUE(blind_runs(p, 9).empty());  // shorter than the threshold
+  EXPECT_TRUE(blind_runs(f.run.passes[0].pass, 5).empty());
+}

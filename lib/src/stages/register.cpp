@@ -16,6 +16,7 @@ const OptionSchema& register_schema() {
       opt_double("max_pose_gap", 1.0, 0.0, std::nullopt, "s",
                  "returns inside a pose-file gap longer than this get no_pose (0: never)"),
       opt_bool("covariance", true, "propagate each point's 3x3 covariance (sensor and pose_sigma) to cloud.pcd"),
+      opt_int("blind_lines", 5, 0.0, 1e6, "lines", "warn of this many consecutive lines without any return (0: never)"),
   };
   return s;
 }
@@ -101,6 +102,31 @@ void register_pass(Pass& pass, const RegisterParams& params, const SensorParams&
   }
 }
 
+std::vector<std::string> blind_runs(const Pass& pass, int min_lines) {
+  std::vector<std::string> out;
+  if (min_lines <= 0) return out;
+  std::size_t run_start = 0, run_len = 0;
+  const auto flush = [&](std::size_t end_line) {
+    if (run_len >= static_cast<std::size_t>(min_lines))
+      out.push_back(pass.source + ": lines " + std::to_string(pass.line[pass.line_begin[run_start]]) + "-" +
+                    std::to_string(pass.line[pass.line_begin[end_line]]) + " (" + std::to_string(run_len) +
+                    " lines) returned nothing: sensor blinded (sunlight?) or obstructed");
+    run_len = 0;
+  };
+  for (std::size_t k = 0; k < pass.line_count(); ++k) {
+    bool any = false;
+    for (std::size_t i = pass.line_begin[k]; i < pass.line_begin[k + 1] && !any; ++i) any = pass.range[i] > 0.0f;
+    if (!any) {
+      if (run_len == 0) run_start = k;
+      ++run_len;
+    } else if (run_len) {
+      flush(k - 1);
+    }
+  }
+  if (run_len) flush(pass.line_count() - 1);
+  return out;
+}
+
 namespace {
 class RegisterStage final : public Stage {
  public:
@@ -112,6 +138,7 @@ class RegisterStage final : public Stage {
     register_pass(pass, params_, ctx_.config->sensor, T_V_N_, ctx_.poses.get(), ctx_.config->pose_sigma,
                   ctx_.config->rpy_order);
     report.metrics["lines"] += static_cast<double>(pass.line_count());
+    for (const auto& w : blind_runs(pass, params_.blind_lines)) report.warnings.push_back(w);
   }
 
  private:
@@ -130,6 +157,7 @@ StageInfo register_stage_info() {
             p.skew_correction = sc.options.get_bool("skew_correction");
             p.max_pose_gap = sc.options.get_double("max_pose_gap");
             p.covariance = sc.options.get_bool("covariance");
+            p.blind_lines = static_cast<int>(sc.options.get_int("blind_lines"));
             return std::make_unique<RegisterStage>(p, ctx);
           }};
 }

@@ -13,6 +13,8 @@
 #pragma once
 
 #include <memory>
+#include <string>
+#include <vector>
 
 #include "pcdp/config.hpp"
 #include "pcdp/options.hpp"
@@ -25,7 +27,12 @@ struct RegisterParams {
   bool skew_correction = true;
   double max_pose_gap = 1.0;  ///< s; 0 disables the check
   bool covariance = true;     ///< propagate the per-point covariance (uncertainty.hpp)
+  int blind_lines = 5;        ///< warn of this many consecutive lines without a return
 };
+
+/// Runs of at least `min_lines` consecutive lines without any return (a sensor blinded by the sun,
+/// Broten & Collier 7.5, or covered): one warning each, naming the file and the line range.
+std::vector<std::string> blind_runs(const Pass& pass, int min_lines);
 
 /// The schema of `register` (drives validation, describe and docs).
 const OptionSchema& register_schema();
