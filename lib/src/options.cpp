@@ -187,3 +187,21 @@ std::string describe_schema(const OptionSchema& schema) {
 }
 
 }  // namespace pcdp
+
+namespace pcdp {
+
+std::string schema_markdown(const OptionSchema& schema) {
+  std::ostringstream os;
+  os << "| option | type | default | bounds | unit | description |\n|---|---|---|---|---|---|\n";
+  for (const auto& s : schema) {
+    std::string def = s.required ? "(required)" : format_value(s.default_value);
+    if (def.empty()) def = "\"\"";
+    std::string b = s.bounds_text();
+    for (std::size_t p = b.find('|'); p != std::string::npos; p = b.find('|', p + 2)) b.replace(p, 1, "\\|");
+    os << "| `" << s.name << "` | " << option_type_name(s.type) << " | `" << def << "` | " << (b.empty() ? "" : "`" + b + "`")
+       << " | " << (s.unit.empty() ? "" : s.unit) << " | " << s.doc << " |\n";
+  }
+  return os.str();
+}
+
+}  // namespace pcdp

@@ -541,3 +541,13 @@ TEST(Cli, AKilledRunLeavesNoFileThatLooksComplete) {
       EXPECT_NE(name.find(".tmp"), std::string::npos) << name;
     }
 }
+
+TEST(Docs, TheStageReferenceIsGeneratedAndUpToDate) {
+  const auto res = run_cli({"docs"});
+  ASSERT_EQ(res.exit_code, 0) << res.err;
+  EXPECT_EQ(res.out, test::read_text(std::string(PCDP_SOURCE_DIR) + "/docs/stages.md"))
+      << "docs/stages.md is out of date: regenerate it with ./build/tools/pcd_pipeline docs > docs/stages.md";
+  for (const auto& name : {"register", "reject_occlusion", "reject_mixed_pixels", "check_consistency", "fuse_elevation",
+                           "fuse_octomap", "range_calibration.k", "transceiver_angle"})
+    EXPECT_NE(res.out.find(name), std::string::npos) << name;
+}

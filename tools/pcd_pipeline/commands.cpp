@@ -424,6 +424,24 @@ int cmd_merge(const std::vector<std::string>& inputs, const std::string& output,
   return 0;
 }
 
+int cmd_docs() {
+  std::cout << "# Stage and block reference\n\n"
+               "Generated from the option schemas by `pcd_pipeline docs > docs/stages.md`; a test fails when\n"
+               "this file and the code disagree. The same schemas validate pipelines and drive\n"
+               "`pcd_pipeline describe`.\n\n## Stages\n\n";
+  for (const auto& s : builtin_stages())
+    std::cout << "### `" << s.type << "`\n\n" << s.summary << "\n\n" << schema_markdown(s.schema) << "\n";
+  std::cout << "## Pipeline blocks\n\n";
+  const std::pair<const char*, const OptionSchema*> blocks[] = {
+      {"sensor", &sensor_schema()}, {"mount", &mount_schema()}, {"pose_sigma", &pose_sigma_schema()}};
+  for (const auto& [name, sch] : blocks) std::cout << "### `" << name << "`\n\n" << schema_markdown(*sch) << "\n";
+  std::cout << "## Scene blocks (`pcd_pipeline simulate`)\n\n";
+  const std::pair<const char*, const OptionSchema*> scene[] = {
+      {"scanner", &scanner_schema()}, {"motion", &motion_schema()}, {"terrain", &terrain_schema()}};
+  for (const auto& [name, sch] : scene) std::cout << "### `" << name << "`\n\n" << schema_markdown(*sch) << "\n";
+  return 0;
+}
+
 int cmd_describe(const std::string& what) {
   const std::vector<std::pair<std::string, const OptionSchema*>> blocks = {
       {"sensor", &sensor_schema()},   {"mount", &mount_schema()},   {"pose_sigma", &pose_sigma_schema()},

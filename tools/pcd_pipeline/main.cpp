@@ -107,6 +107,8 @@ int main(int argc, char** argv) {
   mrg->add_option("-o,--output", mg_out, "merged GeoTIFF")->required();
   mrg->add_option("--png", mg_png, "also draw the merged picture");
 
+  CLI::App* docs = app.add_subcommand("docs", "print the generated stage and block reference (Markdown)");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -120,6 +122,7 @@ int main(int argc, char** argv) {
     if (*stages) return cli::cmd_stages();
     if (*describe) return cli::cmd_describe(describe_what);
     if (*evaluate) return cli::cmd_evaluate(ev_truth, ev_run, ev_json, ev_quiet);
+    if (*docs) return cli::cmd_docs();
     if (*mrg) return cli::cmd_merge(mg_in, mg_out, mg_png);
     if (*calr) return cli::cmd_calibrate_range(cr_csv);
     if (*calm) return cli::cmd_calibrate_mount(cm_args, cm_scans);

@@ -76,5 +76,7 @@ std::optional<std::string> parse_option_value(const OptionSpec& spec, const std:
 
 /// A multi-line table of a schema (name, type, default, bounds, unit, doc), for `describe`.
 std::string describe_schema(const OptionSchema& schema);
+/// The same as a Markdown table, for the generated reference (docs/stages.md).
+std::string schema_markdown(const OptionSchema& schema);
 
 }  // namespace pcdp
