@@ -126,9 +126,11 @@ Pass pass_from_table(io::PcdTable&& table, const std::string& source, std::size_
       fail("field 'nod', " + at(i) + ": " + std::to_string(p.nod[i]) + " is not a valid angle (finite, |nod| <= pi rad)");
     if (!std::isfinite(p.stamp[i])) fail("field 'stamp', " + at(i) + ": stamp is not finite");
     const bool has_return = r > 0.0f && !std::isnan(r);
-    if (has_return && (!std::isfinite(p.amplitude[i]) || p.amplitude[i] < 0.0f))
+    // NaN amplitude: not measured (sensors and importers without intensity); the filters skip
+    // their amplitude tests for it.
+    if (has_return && !std::isnan(p.amplitude[i]) && (!std::isfinite(p.amplitude[i]) || p.amplitude[i] < 0.0f))
       fail("field 'amplitude', " + at(i) + ": " + std::to_string(p.amplitude[i]) +
-           " is not a valid amplitude for a return (finite and >= 0)");
+           " is not a valid amplitude for a return (finite and >= 0, or NaN: not measured)");
     if (new_line) {
       if (i > 0) {
         // Close the previous line: its encoder time is its last stamp.

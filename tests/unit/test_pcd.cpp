@@ -180,7 +180,7 @@ TEST(Pcd, ContractViolationsNameFieldLineAndBeam) {
   rows[1] = "0 0 0 0.0 0 0.2 10.001";
   EXPECT_NE(error_of(ascii_pcd(rows)).find("line 0 beam 0: appears twice"), std::string::npos);
   rows = kRows;
-  rows[0] = "0 0 1.5 -0.1 nan 0.2 10.000";
+  rows[0] = "0 0 1.5 -0.1 -3 0.2 10.000";
   EXPECT_NE(error_of(ascii_pcd(rows)).find("field 'amplitude', line 0 beam 0"), std::string::npos);
 }
 
@@ -200,7 +200,7 @@ TEST(Lzf, DecodesLiteralsAndOverlappingBackReferences) {
 }
 
 TEST(Pcd, NanAndInfInEveryNumericField) {
-  // range NaN means no return and is valid; amplitude NaN is valid only without a return;
+  // range NaN means no return and amplitude NaN means "not measured": both are valid;
   // everything else non-finite is refused, naming the field.
   const char* fields[] = {"line", "beam", "range", "bearing", "amplitude", "nod", "stamp"};
   for (int f = 0; f < 7; ++f) {
@@ -214,7 +214,7 @@ TEST(Pcd, NanAndInfInEveryNumericField) {
       for (const auto& c : cells) row += c + " ";
       rows[3] = row;
       const std::string e = error_of(ascii_pcd(rows));
-      const bool allowed = f == 2 && std::string(bad) == "nan";
+      const bool allowed = (f == 2 || f == 4) && std::string(bad) == "nan";
       if (allowed) {
         EXPECT_EQ(e, "(no error)") << fields[f] << " " << bad;
       } else {
@@ -251,4 +251,15 @@ TEST(Pcd, BinaryCompressedWithABadLength) {
   body.append("\xff\xff\xff\xff\xff\xff\xff\xff", 8);
   e = error_of(body);
   EXPECT_NE(e.find("corrupt LZF data (does not decode to 320 bytes)"), std::string::npos) << e;
+}
+
+// Regression for a fuzz_pcd finding: a header whose DATA line is the last byte of the file (no newline)
+// used to put the data offset past the end, and "bytes available" wrapped around to 2^64.
+TEST(Pcd, DataLineWithoutTrailingNewlineIsAnEmptyBodyNotACrash) {
+  const std::string head = std::string(kHeader) + "WIDTH 2\nHEIGHT 1\nPOINTS 2\n";
+  for (const char* data : {"DATA ascii", "DATA binary", "DATA binary_compressed"}) {
+    const std::string msg = error_of(head + data);
+    EXPECT_NE(msg, "(no error)") << data;
+    EXPECT_NE(msg.find("p.pcd"), std::string::npos) << msg;
+  }
 }

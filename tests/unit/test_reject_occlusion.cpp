@@ -166,3 +166,20 @@ stages:
     EXPECT_NE(std::string(e.what()).find("option 'stable' = 3 must not exceed 'window' = 2"), std::string::npos) << e.what();
   }
 }
+
+TEST(RejectOcclusion, UnmeasuredAmplitudeIsNeverJudgedWeak) {
+  // A sensor without intensity (NaN amplitude, "not measured"): a range edge with a jump and a
+  // far surface. Nothing may be labelled occlusion or low_amplitude on an amplitude it never had.
+  std::vector<float> r, a;
+  for (int i = 0; i < 40; ++i) {
+    r.push_back(i < 20 ? 5.0f : 12.0f + 0.01f * static_cast<float>(i));
+    a.push_back(NAN);
+  }
+  r[20] = 8.0f;  // a lone range between the surfaces, as a false range would be
+  Pass p = line_pass(r, a);
+  SensorParams s;
+  s.min_amplitude = 18;
+  const OcclusionCounts c = reject_occlusion(p, OcclusionParams{}, s);
+  EXPECT_EQ(c.suspects, 0u);
+  EXPECT_EQ(p.kept(), p.size());
+}

@@ -19,6 +19,7 @@
 #include "pcdp/uncertainty.hpp"
 #include "pcdp/io/atomic_file.hpp"
 #include "pcdp/io/geotiff.hpp"
+#include "pcdp/io/import_3dtk.hpp"
 #include "pcdp/nod_plan.hpp"
 #include "pcdp/io/svg_plot.hpp"
 #include "pcdp/occlusion_model.hpp"
@@ -439,6 +440,26 @@ int cmd_docs() {
   const std::pair<const char*, const OptionSchema*> scene[] = {
       {"scanner", &scanner_schema()}, {"motion", &motion_schema()}, {"terrain", &terrain_schema()}};
   for (const auto& [name, sch] : scene) std::cout << "### `" << name << "`\n\n" << schema_markdown(*sch) << "\n";
+  return 0;
+}
+
+int cmd_import(const std::string& format, const std::vector<std::string>& inputs, const std::string& out_dir,
+               const std::string& poses) {
+  if (format != "3dtk") throw ConfigError("import: unknown format '" + format + "'" + did_you_mean(format, {"3dtk"}) + "; formats: 3dtk");
+  if (poses != "odometry" && poses != "frames")
+    throw ConfigError("import 3dtk: --poses must be odometry or frames, not '" + poses + "'");
+  const io::Imported3dtk r = io::import_3dtk(inputs, poses == "frames");
+  std::filesystem::create_directories(out_dir);
+  std::size_t n = 0;
+  for (std::size_t k = 0; k < r.passes.size(); ++k) {
+    char name[32];
+    std::snprintf(name, sizeof name, "pass_%03zu.pcd", k);
+    sim::write_pass_pcd(r.passes[k], (std::filesystem::path(out_dir) / name).string());
+    n += r.passes[k].size();
+  }
+  sim::write_pose_csv(r.poses, RpyOrder::kXyz, (std::filesystem::path(out_dir) / "poses.csv").string());
+  std::printf("imported %zu 3DTK scan(s), %zu returns, %s poses -> %s (pass_*.pcd, poses.csv; rpy_order xyz)\n",
+              r.passes.size(), n, poses.c_str(), out_dir.c_str());
   return 0;
 }
 

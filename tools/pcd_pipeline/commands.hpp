@@ -42,6 +42,8 @@ int cmd_calibrate_mount(const RunArgs& a, const std::vector<std::string>& scans)
 int cmd_error_budget(const RunArgs& a, const std::string& svg, const std::string& csv);
 int cmd_merge(const std::vector<std::string>& inputs, const std::string& output, const std::string& png);
 int cmd_docs();
+int cmd_import(const std::string& format, const std::vector<std::string>& inputs, const std::string& out_dir,
+               const std::string& poses);
 int cmd_simulate(const std::string& scene, const std::string& output_dir, bool quiet);
 
 }  // namespace pcdp::cli

@@ -107,6 +107,13 @@ int main(int argc, char** argv) {
   mrg->add_option("-o,--output", mg_out, "merged GeoTIFF")->required();
   mrg->add_option("--png", mg_png, "also draw the merged picture");
 
+  std::string imp_format, imp_out, imp_poses = "odometry";
+  std::vector<std::string> imp_in;
+  CLI::App* imp = app.add_subcommand("import", "convert scans of other tools to raw passes and a pose file (formats: 3dtk)");
+  imp->add_option("format", imp_format, "3dtk: 3DTK uos scans (.3d with .pose/.frames beside them)")->required();
+  imp->add_option("inputs", imp_in, "input files")->required();
+  imp->add_option("--output-dir", imp_out, "folder for pass_*.pcd and poses.csv")->required();
+  imp->add_option("--poses", imp_poses, "3dtk: odometry (.pose) or frames (slam6D's registered .frames)")->capture_default_str();
   CLI::App* docs = app.add_subcommand("docs", "print the generated stage and block reference (Markdown)");
 
   try {
@@ -123,6 +130,7 @@ int main(int argc, char** argv) {
     if (*describe) return cli::cmd_describe(describe_what);
     if (*evaluate) return cli::cmd_evaluate(ev_truth, ev_run, ev_json, ev_quiet);
     if (*docs) return cli::cmd_docs();
+    if (*imp) return cli::cmd_import(imp_format, imp_in, imp_out, imp_poses);
     if (*mrg) return cli::cmd_merge(mg_in, mg_out, mg_png);
     if (*calr) return cli::cmd_calibrate_range(cr_csv);
     if (*calm) return cli::cmd_calibrate_mount(cm_args, cm_scans);

@@ -200,7 +200,9 @@ PcdHeader read_pcd_header(const std::string& path) {
       else if (args[0] == "binary_compressed") h.data = PcdData::kBinaryCompressed;
       else fail(path, where + ": unknown data format '" + args[0] + "' (expected ascii, binary or binary_compressed)");
       have_data = true;
-      h.data_offset = pos;
+      // A DATA line that ends the file without a newline leaves pos one past the end; clamp it so the
+      // "bytes available" arithmetic in read_pcd cannot wrap around (found by fuzz_pcd).
+      h.data_offset = std::min<std::size_t>(pos, buf.size());
     } else {
       fail(path, where + ": unknown header key '" + key + "' (is this a PCD v0.7 file?)");
     }

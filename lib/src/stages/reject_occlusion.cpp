@@ -160,7 +160,8 @@ class Sequencer {
       sd.r[k] = r[k];
       sd.at[k] = at[k];
     }
-    std::sort(a, a + sd.count);
+    // NaN amplitudes ("not measured") sort last so the comparison stays a strict weak ordering.
+    std::sort(a, a + sd.count, [](double x, double y) { return x < y || (std::isnan(y) && !std::isnan(x)); });
     sd.amplitude = a[sd.count / 2];
     sd.range = r[0];
     sd.predicted = r[0];

@@ -1,0 +1,155 @@
+#include "pcdp/io/import_3dtk.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <sstream>
+
+#include "pcdp/errors.hpp"
+
+namespace pcdp::io {
+
+namespace {
+constexpr double kDeg = 0.017453292519943295;
+constexpr double kLinePeriod = 0.0133;
+constexpr std::size_t kBeams = 360;
+
+Eigen::Matrix3d C() {
+  Eigen::Matrix3d c;
+  c << 0, 0, 1, -1, 0, 0, 0, 1, 0;
+  return c;
+}
+
+std::string sibling(const std::string& scan, const std::string& ext) {
+  const auto dot = scan.rfind('.');
+  return (dot == std::string::npos ? scan : scan.substr(0, dot)) + ext;
+}
+}  // namespace
+
+Eigen::Vector3d uos_to_ours(const Eigen::Vector3d& p_cm) { return C() * p_cm / 100.0; }
+
+Eigen::Isometry3d read_3dtk_pose(const std::string& scan, bool use_frames) {
+  Eigen::Matrix3d R_uos;
+  Eigen::Vector3d t_uos;
+  if (use_frames) {
+    const std::string path = sibling(scan, ".frames");
+    std::ifstream in(path);
+    if (!in) throw InputError(path + ": cannot open the slam6D frames file");
+    std::string line, last;
+    while (std::getline(in, line)) {
+      std::istringstream is(line);
+      std::vector<double> v;
+      for (double x; is >> x;) v.push_back(x);
+      if (v.size() >= 16) last = line;
+    }
+    std::istringstream is(last);
+    double m[16];
+    for (double& x : m)
+      if (!(is >> x)) throw InputError(path + ": no line with a 4x4 matrix (16 numbers)");
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) R_uos(r, c) = m[c * 4 + r];  // column-major (OpenGL)
+    t_uos = {m[12], m[13], m[14]};
+  } else {
+    const std::string path = sibling(scan, ".pose");
+    std::ifstream in(path);
+    double v[6];
+    for (double& x : v)
+      if (!(in >> x)) throw InputError(path + ": expected x y z (cm) and theta x y z (degrees)");
+    t_uos = {v[0], v[1], v[2]};
+    R_uos = rot_x(v[3] * kDeg) * rot_y(v[4] * kDeg) * rot_z(v[5] * kDeg);  // 3DTK EulerToMatrix4
+  }
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = C() * R_uos * C().transpose();
+  T.translation() = C() * t_uos / 100.0;
+  return T;
+}
+
+Imported3dtk import_3dtk(const std::vector<std::string>& scans, bool use_frames) {
+  Imported3dtk out;
+  for (std::size_t k = 0; k < scans.size(); ++k) {
+    std::ifstream in(scans[k]);
+    if (!in) throw InputError(scans[k] + ": cannot open the 3DTK scan");
+    std::vector<Eigen::Vector3d> pts;
+    std::string line;
+    std::size_t lineno = 0;
+    while (std::getline(in, line)) {
+      ++lineno;
+      std::istringstream is(line);
+      double x, y, z;
+      if (!(is >> x >> y >> z)) {
+        if (lineno == 1) continue;  // the "W x H" header
+        if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+        throw InputError(scans[k] + ":" + std::to_string(lineno) + ": expected x y z (cm)");
+      }
+      pts.push_back({x, y, z});
+    }
+    if (pts.empty() || pts.size() % kBeams != 0)
+      throw InputError(scans[k] + ": " + std::to_string(pts.size()) + " points is not a whole number of 360-beam lines");
+    const std::size_t lines = pts.size() / kBeams;
+    if (lines >= 1000)  // scan k owns line numbers 1000 k .. 1000 k + 999
+      throw InputError(scans[k] + ": " + std::to_string(lines) + " lines; at most 999 lines per scan are supported");
+    Pass p;
+    p.index = k;
+    p.source = scans[k];
+    p.organized = true;
+    // Bearing of each beam index: a line fitted to the valid points' bearings (for no-returns).
+    std::vector<double> bearing(pts.size(), std::numeric_limits<double>::quiet_NaN());
+    std::vector<char> valid(pts.size());
+    double sb = 0, sbb = 0, sn = 0, snb = 0, cnt = 0;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      const double r_cm = pts[i].norm();
+      valid[i] = r_cm > 0.0 && r_cm < 3276.0;
+      if (!valid[i]) continue;
+      const Eigen::Vector3d q = uos_to_ours(pts[i]);
+      bearing[i] = std::atan2(q.y(), std::hypot(q.x(), q.z()));
+      const double b = static_cast<double>(i % kBeams);
+      sb += b;
+      sbb += b * b;
+      sn += bearing[i];
+      snb += bearing[i] * b;
+      cnt += 1;
+    }
+    const double slope = cnt > 2 ? (cnt * snb - sb * sn) / (cnt * sbb - sb * sb) : 0.0;
+    const double icept = cnt > 2 ? (sn - slope * sb) / cnt : 0.0;
+    const double t0 = 100.0 * static_cast<double>(k);
+    for (std::size_t l = 0; l < lines; ++l) {
+      std::vector<double> elev;
+      for (std::size_t b = 0; b < kBeams; ++b) {
+        const std::size_t i = l * kBeams + b;
+        if (!valid[i]) continue;
+        const Eigen::Vector3d q = uos_to_ours(pts[i]);
+        elev.push_back(std::atan2(q.z(), q.x()));
+      }
+      double nod = 0.0;
+      if (!elev.empty()) {
+        std::nth_element(elev.begin(), elev.begin() + static_cast<long>(elev.size() / 2), elev.end());
+        nod = elev[elev.size() / 2];
+      }
+      p.line_begin.push_back(p.range.size());
+      for (std::size_t b = 0; b < kBeams; ++b) {
+        const std::size_t i = l * kBeams + b;
+        p.line.push_back(static_cast<std::uint32_t>(k * 1000 + l));
+        p.beam.push_back(static_cast<std::uint32_t>(b));
+        p.range.push_back(valid[i] ? static_cast<float>(pts[i].norm() / 100.0) : 0.0f);
+        p.bearing.push_back(static_cast<float>(valid[i] ? bearing[i] : icept + slope * static_cast<double>(b)));
+        p.amplitude.push_back(std::numeric_limits<float>::quiet_NaN());
+        p.nod.push_back(static_cast<float>(nod));
+        p.stamp.push_back(t0 + (static_cast<double>(l) + static_cast<double>(b) / kBeams) * kLinePeriod);
+      }
+    }
+    p.line_begin.push_back(p.range.size());
+    p.label.assign(p.range.size(), Label::kKept);
+    p.flags.assign(p.range.size(), 0);
+    const Eigen::Isometry3d T = read_3dtk_pose(scans[k], use_frames);
+    const Eigen::Quaterniond q(T.linear());
+    // The pose is constant over the scan: samples every 0.25 s across its span (a sparser file
+    // would be a gap that register's max_pose_gap refuses to interpolate across).
+    const double span = static_cast<double>(lines) * kLinePeriod;
+    for (double t = t0 - 0.25; t <= t0 + span + 0.25; t += 0.25) out.poses.push_back({t, T.translation(), q});
+    out.passes.push_back(std::move(p));
+  }
+  return out;
+}
+
+}  // namespace pcdp::io
