@@ -665,3 +665,33 @@ TEST(Kurt3D, ImportRefusesMalformedScansNamingFileAndLine) {
   // Nothing was written for any of the failures.
   EXPECT_FALSE(std::filesystem::exists(dir + "/out/poses.csv"));
 }
+
+// ---- bench ------------------------------------------------------------------------------------
+
+TEST(Bench, PrintsEveryStageThePeersAndTheRatiosInOneTable) {
+  const std::string src = PCDP_SOURCE_DIR;
+  const auto r = run_cli({"bench", "--scene", src + "/sample_scans/scene.yaml", "--pipeline",
+                          src + "/pipelines/nodding_terrain.yaml", "--passes", "1", "--reps", "1", "--geometric"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  for (const char* s : {"register (register)", "reject_occlusion", "reject_mixed_pixels", "check_consistency",
+                        "fuse_elevation", "fuse_octomap", "floor: plain loop", "pcl::transformPointCloud",
+                        "pcl::StatisticalOutlierRemoval", "octomap insertPointCloud", "fuse_octomap vs insertPointCloud",
+                        "occupied cells: ours"})
+    EXPECT_NE(r.out.find(s), std::string::npos) << s << "\n" << r.out;
+  // The occupied-cell agreement is a measured number, not a constant: it must be a percentage.
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.out, m, std::regex("= ([0-9.]+) % of theirs"))) << r.out;
+  const double pct = std::stod(m[1]);
+  EXPECT_GT(pct, 90.0);
+  EXPECT_LE(pct, 100.0);
+}
+
+TEST(Bench, BadArgumentsAreConfigurationErrors) {
+  auto r = run_cli({"bench", "--passes", "0"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--passes 0 is outside 1 .. 1000"), std::string::npos) << r.err;
+  r = run_cli({"bench", "--scene", "/nonexistent/scene.yaml", "--pipeline",
+               std::string(PCDP_SOURCE_DIR) + "/pipelines/nodding_terrain.yaml"});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("/nonexistent/scene.yaml"), std::string::npos) << r.err;
+}

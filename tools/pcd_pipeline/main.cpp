@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 #include <iostream>
 
+#include "bench.hpp"
 #include "commands.hpp"
 #include "pcdp/errors.hpp"
 #include "pcdp/nod_plan.hpp"
@@ -114,6 +115,14 @@ int main(int argc, char** argv) {
   imp->add_option("inputs", imp_in, "input files")->required();
   imp->add_option("--output-dir", imp_out, "folder for pass_*.pcd and poses.csv")->required();
   imp->add_option("--poses", imp_poses, "3dtk: odometry (.pose) or frames (slam6D's registered .frames)")->capture_default_str();
+  cli::BenchArgs bench;
+  CLI::App* bch = app.add_subcommand("bench", "time the chain stage by stage against PCL, OctoMap and a plain loop, same data");
+  bch->add_option("--scene", bench.scene, "scene to simulate")->capture_default_str();
+  bch->add_option("--pipeline", bench.pipeline, "pipeline to time (its input is replaced)")->capture_default_str();
+  bch->add_option("--passes", bench.passes, "passes to simulate")->capture_default_str();
+  bch->add_option("--reps", bench.reps, "repetitions (the median is reported)")->capture_default_str();
+  bch->add_flag("--geometric", bench.geometric, "geometric simulator (no beam footprint), faster to generate");
+  bch->add_option("--scaling", bench.scaling, "also time `run` on these numbers of passes, e.g. 1,10,100");
   CLI::App* docs = app.add_subcommand("docs", "print the generated stage and block reference (Markdown)");
 
   try {
@@ -130,6 +139,7 @@ int main(int argc, char** argv) {
     if (*describe) return cli::cmd_describe(describe_what);
     if (*evaluate) return cli::cmd_evaluate(ev_truth, ev_run, ev_json, ev_quiet);
     if (*docs) return cli::cmd_docs();
+    if (*bch) return cli::cmd_bench(bench);
     if (*imp) return cli::cmd_import(imp_format, imp_in, imp_out, imp_poses);
     if (*mrg) return cli::cmd_merge(mg_in, mg_out, mg_png);
     if (*calr) return cli::cmd_calibrate_range(cr_csv);
