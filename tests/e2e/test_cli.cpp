@@ -695,3 +695,107 @@ TEST(Bench, BadArgumentsAreConfigurationErrors) {
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.err.find("/nonexistent/scene.yaml"), std::string::npos) << r.err;
 }
+
+// ---- real data: RPLIDAR C1 on a nodding servo (TurboSLAM) -----------------------------------
+
+TEST(Rplidar, ImportKeepsEveryBeamAndTheTiltGeometryAndSomeVeilsAreRejected) {
+  const std::string csv = std::string(PCDP_SHARED_DIR) + "/datasets/rplidar_tilt_turboslam/csv/lidarServo";
+  const std::string dir = test::fresh_dir();
+  const auto imp = run_cli({"import", "rplidar", csv, "--output-dir", dir + "/import"});
+  ASSERT_EQ(imp.exit_code, 0) << imp.err;
+  // SOURCE.md: 298 LaserScans of which 3 are empty, 150,519 beams.
+  EXPECT_NE(imp.out.find("imported 298 LaserScan(s) (3 dropped"), std::string::npos) << imp.out;
+  EXPECT_NE(imp.out.find("150519 returns"), std::string::npos) << imp.out;
+  test::write_text(dir + "/p.yaml",
+                   "input: {scans: import/pass_*.pcd}\noutput_dir: out\n"
+                   "mount: {z: 0.04}\n"
+                   "sensor: {range_min: 0.15, range_max: 10.0, transceiver_separation: 0.0, min_amplitude: 1,"
+                   " range_sigma: 0.03}\npose_sigma: {position: 0.0, rpy: 0.0}\n"
+                   "stages: [{type: register, skew_correction: true}, {type: reject_mixed_pixels}]\n");
+  const auto run = run_cli({"run", dir + "/p.yaml", "-q"});
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const io::PcdTable t = io::read_pcd(dir + "/out/returns.pcd");
+  const auto z = test::column(t, "z"), x = test::column(t, "x"), range = test::column(t, "range"),
+             label = test::column(t, "label"), line = test::column(t, "line"), beam = test::column(t, "beam");
+  ASSERT_EQ(label.size(), 150519u);
+  // SOURCE.md: 38,857 beams with range 0 (no return).
+  EXPECT_EQ(std::count(label.begin(), label.end(), static_cast<double>(Label::kNoReturn)), 38857);
+  // Tilt sign and the 4 cm mount: the nod of each line (from the pass files) against the height of
+  // its forward returns. Level lines sit at the laser's height; tilted-up lines rise ahead.
+  std::vector<float> nod;
+  for (std::size_t k = 0; fs::exists(dir + "/import/pass_" + (k < 10 ? "00" : "0") + std::to_string(k) + ".pcd"); ++k) {
+    const Pass p = read_pass(dir + "/import/pass_" + (k < 10 ? "00" : "0") + std::to_string(k) + ".pcd", k);
+    nod.insert(nod.end(), p.nod.begin(), p.nod.end());
+  }
+  ASSERT_EQ(nod.size(), label.size());
+  std::size_t level = 0, up = 0, up_rises = 0;
+  std::vector<double> level_dz;
+  for (std::size_t i = 0; i < label.size(); ++i) {
+    if (label[i] != 0 || !(x[i] > 0.5) || range[i] > 6.0) continue;
+    if (std::fabs(nod[i]) < 0.01) {
+      ++level;
+      level_dz.push_back(std::fabs(z[i] - 0.04) / range[i]);
+    } else if (nod[i] > 0.2) {
+      ++up;
+      up_rises += z[i] > 0.04 + 0.1 * x[i];
+    }
+  }
+  ASSERT_GT(level, 100u);
+  ASSERT_GT(up, 100u);
+  // Within a level line the servo still turns (skew): |dz| / r stays within a degree or two.
+  EXPECT_LT(test::median(level_dz), 0.02);
+  EXPECT_GT(static_cast<double>(up_rises) / static_cast<double>(up), 0.9);
+  // Mixed pixels against SOURCE.md's crude along-scan candidates (a return isolated by > 0.2 m
+  // inside a > 1 m jump between its two scan neighbours). Measured: 26 of 100 rejected (16 of the 63
+  // dim ones), 29 of 79,024 other returns: the stage is conservative on this sensor (a known
+  // limitation, docs/real_data.md); these floors catch a regression either way.
+  const auto amp = test::column(t, "amplitude");
+  std::size_t cand = 0, cand_rej = 0, dim = 0, dim_rej = 0, valid = 0, valid_rej = 0;
+  for (std::size_t i = 1; i + 1 < label.size(); ++i) {
+    if (line[i - 1] != line[i] || line[i + 1] != line[i] || beam[i - 1] + 1 != beam[i] || beam[i] + 1 != beam[i + 1]) continue;
+    const double a = range[i - 1], b = range[i], c = range[i + 1];
+    if (!(a > 0) || !(b > 0) || !(c > 0) || label[i] == static_cast<double>(Label::kOutOfRange)) continue;
+    const bool is_cand = std::fabs(a - c) > 1.0 && std::fabs(b - a) > 0.2 && std::fabs(b - c) > 0.2;
+    const bool rej = label[i] == static_cast<double>(Label::kMixedPixel);
+    if (is_cand) {
+      ++cand;
+      cand_rej += rej;
+      if (amp[i] < 5) {
+        ++dim;
+        dim_rej += rej;
+      }
+    } else {
+      ++valid;
+      valid_rej += rej;
+    }
+  }
+  std::cout << "RPLIDAR lidarServo: " << cand_rej << " of " << cand << " crude veil candidates rejected (" << dim_rej
+            << " of the " << dim << " dim ones, quality < 5); " << valid_rej
+            << " of " << valid << " other returns with a return on both sides rejected\n";
+  ASSERT_GT(cand, 30u);
+  EXPECT_GE(static_cast<double>(cand_rej) / static_cast<double>(cand), 0.2);
+  EXPECT_LT(static_cast<double>(valid_rej) / static_cast<double>(valid), 0.002);
+}
+
+TEST(Rplidar, ImportRefusesBrokenCsvNamingFileLineAndRule) {
+  const std::string src = std::string(PCDP_SHARED_DIR) + "/datasets/rplidar_tilt_turboslam/csv/lidarServo/";
+  const std::string dir = test::fresh_dir();
+  const auto with = [&](const std::string& file, const std::string& content) {
+    fs::create_directories(dir + "/in");
+    for (const char* f : {"scans.csv", "beams.csv", "servo.csv"})
+      test::write_text(dir + "/in/" + f, f == file ? content : test::read_text(src + f));
+    return run_cli({"import", "rplidar", dir + "/in", "--output-dir", dir + "/out"});
+  };
+  const std::string beams = test::read_text(src + "beams.csv");
+  const std::size_t l2 = beams.find('\n', beams.find('\n') + 1);  // end of line 2
+  auto r = with("beams.csv", beams.substr(0, l2 + 1) + "0,1,0.0123684751,abc,12\n" + beams.substr(beams.find('\n', l2 + 1) + 1));
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_NE(r.err.find("beams.csv:3: column 'range_m': 'abc' is not a finite number"), std::string::npos) << r.err;
+  r = with("servo.csv", "bag_t_ns,servo_deg\n1748602824940924080,89\n1748602825141670871,200\n");
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_NE(r.err.find("servo.csv:3: servo_deg 200 is outside 0 .. 180"), std::string::npos) << r.err;
+  r = with("scans.csv", "scan_idx,bag_t_ns\n");
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_NE(r.err.find("scans.csv:1: no column 'scan_time'"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/out/pass_000.pcd"));
+}

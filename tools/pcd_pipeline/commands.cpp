@@ -20,6 +20,7 @@
 #include "pcdp/io/atomic_file.hpp"
 #include "pcdp/io/geotiff.hpp"
 #include "pcdp/io/import_3dtk.hpp"
+#include "pcdp/io/import_rplidar.hpp"
 #include "pcdp/nod_plan.hpp"
 #include "pcdp/io/svg_plot.hpp"
 #include "pcdp/occlusion_model.hpp"
@@ -445,7 +446,25 @@ int cmd_docs() {
 
 int cmd_import(const std::string& format, const std::vector<std::string>& inputs, const std::string& out_dir,
                const std::string& poses) {
-  if (format != "3dtk") throw ConfigError("import: unknown format '" + format + "'" + did_you_mean(format, {"3dtk"}) + "; formats: 3dtk");
+  if (format == "rplidar") {
+    if (inputs.size() != 1)
+      throw ConfigError("import rplidar: expected one folder (with scans.csv, beams.csv, servo.csv), got " +
+                        std::to_string(inputs.size()) + " inputs");
+    const io::ImportedRplidar r = io::import_rplidar(inputs[0]);
+    std::filesystem::create_directories(out_dir);
+    for (std::size_t k = 0; k < r.passes.size(); ++k) {
+      char name[32];
+      std::snprintf(name, sizeof name, "pass_%03zu.pcd", k);
+      sim::write_pass_pcd(r.passes[k], (std::filesystem::path(out_dir) / name).string());
+    }
+    std::printf("imported %zu LaserScan(s) (%zu dropped: empty or outside the servo stream), %zu returns in %zu pass(es) "
+                "-> %s (pass_*.pcd; no pose file: T_M_V = identity)\n",
+                r.scans, r.dropped_scans, r.beams, r.passes.size(), out_dir.c_str());
+    return 0;
+  }
+  if (format != "3dtk")
+    throw ConfigError("import: unknown format '" + format + "'" + did_you_mean(format, {"3dtk", "rplidar"}) +
+                      "; formats: 3dtk, rplidar");
   if (poses != "odometry" && poses != "frames")
     throw ConfigError("import 3dtk: --poses must be odometry or frames, not '" + poses + "'");
   const io::Imported3dtk r = io::import_3dtk(inputs, poses == "frames");

@@ -110,8 +110,8 @@ int main(int argc, char** argv) {
 
   std::string imp_format, imp_out, imp_poses = "odometry";
   std::vector<std::string> imp_in;
-  CLI::App* imp = app.add_subcommand("import", "convert scans of other tools to raw passes and a pose file (formats: 3dtk)");
-  imp->add_option("format", imp_format, "3dtk: 3DTK uos scans (.3d with .pose/.frames beside them)")->required();
+  CLI::App* imp = app.add_subcommand("import", "convert scans of other tools to raw passes and a pose file (formats: 3dtk, rplidar)");
+  imp->add_option("format", imp_format, "3dtk: 3DTK uos scans (.3d with .pose/.frames beside them); rplidar: a folder of scans/beams/servo CSV")->required();
   imp->add_option("inputs", imp_in, "input files")->required();
   imp->add_option("--output-dir", imp_out, "folder for pass_*.pcd and poses.csv")->required();
   imp->add_option("--poses", imp_poses, "3dtk: odometry (.pose) or frames (slam6D's registered .frames)")->capture_default_str();

@@ -1,0 +1,50 @@
+// Importer of servo-nodded 2-D LaserScan records exported to CSV (e.g.
+// ../shared/datasets/rplidar_tilt_turboslam/csv/<bag>/: an RPLIDAR C1 tilted by a servo) to the
+// raw-pass contract.
+//
+// What it assumes (the data set's SOURCE.md, from the node that recorded it):
+//  - scans.csv has one row per LaserScan (scan_idx, bag_t_ns, angle_min, angle_increment,
+//    scan_time, n_ranges, ...), beams.csv one row per beam (scan_idx, beam_idx, angle_rad, range_m,
+//    intensity) in scan order, servo.csv the servo angle stream (bag_t_ns, servo_deg);
+//  - time: bag receive time. A scan arrives at its bag time after sweeping for scan_time, so beam b
+//    of n was measured at t_arrival - scan_time + (b + 0.5) / n * scan_time; the servo angle is
+//    interpolated linearly at that time (the recording node used the last angle for the whole scan,
+//    a skew of up to one servo period that we do not reproduce). Scans with beams outside the servo
+//    stream are dropped and counted;
+//  - geometry: laser_frame = servo_frame + (0, 0, 0.04 m), servo_frame = base_link rotated about y
+//    by pitch = -(servo_deg - 90) deg, so the nod angle (positive up) is servo_deg - 90 deg. Our
+//    contract reads the encoder once per line, at its end: every return of a scan gets the servo
+//    angle interpolated at the scan's last beam, and `register` with skew_correction interpolates
+//    between line ends (the servo turns about 1.5 deg during one 0.1 s scan). The laser sits 4 cm
+//    above the axis and turns with it, which the nod model (laser on the axis) cannot hold; the
+//    pipeline puts the 4 cm into the mount (exact at nod 0, off by 4 cm x (sin nod, 0, 1 - cos nod),
+//    2.0 cm / 0.5 cm at the 30 deg extremes, under the sensor's own 3 cm);
+//  - range 0 is no return; intensity is the RPLIDAR quality (0-63) and becomes the amplitude;
+//  - no platform pose is recorded: the vehicle frame is base_link and no pose file is written
+//    (pipelines leave input.poses empty: T_M_V = identity);
+//  - passes: a new pass starts where the servo reverses (one pass per half nod, at least
+//    `min_pass_lines` scans).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "pcdp/pass.hpp"
+
+namespace pcdp::io {
+
+struct RplidarImportParams {
+  std::size_t min_pass_lines = 5;
+};
+
+struct ImportedRplidar {
+  std::vector<Pass> passes;
+  std::size_t scans = 0;           ///< scans read
+  std::size_t dropped_scans = 0;   ///< empty, or outside the servo stream
+  std::size_t beams = 0;           ///< beams written
+};
+
+/// `dir` holds scans.csv, beams.csv and servo.csv. Throws InputError naming the file, line and rule.
+ImportedRplidar import_rplidar(const std::string& dir, const RplidarImportParams& p = {});
+
+}  // namespace pcdp::io

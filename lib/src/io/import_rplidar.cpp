@@ -1,0 +1,247 @@
+#include "pcdp/io/import_rplidar.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+
+#include "pcdp/errors.hpp"
+
+namespace pcdp::io {
+
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+
+/// A CSV file read by column name; every row must have as many cells as the header.
+struct Csv {
+  std::string path;
+  std::vector<std::string> names;
+  std::vector<std::vector<std::string>> rows;
+  std::vector<std::size_t> line_of;  ///< file line of each row
+
+  std::size_t col(const std::string& name) const {
+    for (std::size_t i = 0; i < names.size(); ++i)
+      if (names[i] == name) return i;
+    throw InputError(path + ":1: no column '" + name + "' in the header");
+  }
+  double num(std::size_t row, std::size_t c) const {
+    const std::string& s = rows[row][c];
+    char* end = nullptr;
+    const double v = std::strtod(s.c_str(), &end);
+    if (s.empty() || *end != '\0' || !std::isfinite(v))
+      throw InputError(path + ":" + std::to_string(line_of[row]) + ": column '" + names[c] + "': '" + s +
+                       "' is not a finite number");
+    return v;
+  }
+  long long integer(std::size_t row, std::size_t c) const {
+    const std::string& s = rows[row][c];
+    char* end = nullptr;
+    const long long v = std::strtoll(s.c_str(), &end, 10);
+    if (s.empty() || *end != '\0')
+      throw InputError(path + ":" + std::to_string(line_of[row]) + ": column '" + names[c] + "': '" + s +
+                       "' is not an integer");
+    return v;
+  }
+};
+
+std::vector<std::string> split(const std::string& line) {
+  std::vector<std::string> out;
+  std::size_t a = 0;
+  while (true) {
+    const std::size_t b = line.find(',', a);
+    out.push_back(line.substr(a, b == std::string::npos ? std::string::npos : b - a));
+    if (b == std::string::npos) break;
+    a = b + 1;
+  }
+  return out;
+}
+
+Csv read_csv(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open (expected the CSV export of a LaserScan bag)");
+  Csv c;
+  c.path = path;
+  std::string line;
+  std::size_t n = 0;
+  while (std::getline(in, line)) {
+    ++n;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.empty()) continue;
+    auto cells = split(line);
+    if (c.names.empty()) {
+      c.names = std::move(cells);
+      continue;
+    }
+    if (cells.size() != c.names.size())
+      throw InputError(path + ":" + std::to_string(n) + ": " + std::to_string(cells.size()) + " cells, the header has " +
+                       std::to_string(c.names.size()));
+    c.rows.push_back(std::move(cells));
+    c.line_of.push_back(n);
+  }
+  if (c.names.empty()) throw InputError(path + ": the file is empty (expected a header line)");
+  return c;
+}
+
+double wrap(double a) { return std::atan2(std::sin(a), std::cos(a)); }
+}  // namespace
+
+ImportedRplidar import_rplidar(const std::string& dir, const RplidarImportParams& p) {
+  namespace fs = std::filesystem;
+  const Csv scans = read_csv((fs::path(dir) / "scans.csv").string());
+  const Csv beams = read_csv((fs::path(dir) / "beams.csv").string());
+  const Csv servo = read_csv((fs::path(dir) / "servo.csv").string());
+
+  // The servo stream, in time order.
+  std::vector<long long> st;
+  std::vector<double> sdeg;
+  {
+    const std::size_t ct = servo.col("bag_t_ns"), cd = servo.col("servo_deg");
+    for (std::size_t r = 0; r < servo.rows.size(); ++r) {
+      const long long t = servo.integer(r, ct);
+      if (!st.empty() && t < st.back())
+        throw InputError(servo.path + ":" + std::to_string(servo.line_of[r]) + ": bag_t_ns goes back in time");
+      st.push_back(t);
+      const double d = servo.num(r, cd);
+      if (d < 0.0 || d > 180.0)
+        throw InputError(servo.path + ":" + std::to_string(servo.line_of[r]) + ": servo_deg " + servo.rows[r][cd] +
+                         " is outside 0 .. 180");
+      sdeg.push_back(d);
+    }
+    if (st.size() < 2) throw InputError(servo.path + ": fewer than two servo angles");
+  }
+  const auto servo_at = [&](long long t, double& deg) {
+    if (t < st.front() || t > st.back()) return false;
+    const auto it = std::upper_bound(st.begin(), st.end(), t);
+    const std::size_t k = it == st.end() ? st.size() - 1 : static_cast<std::size_t>(it - st.begin());
+    const std::size_t j = k - 1;
+    const double span = static_cast<double>(st[k] - st[j]);
+    const double w = span > 0 ? static_cast<double>(t - st[j]) / span : 0.0;
+    deg = sdeg[j] + w * (sdeg[k] - sdeg[j]);
+    return true;
+  };
+
+  // Scans: arrival time and sweep duration.
+  struct ScanInfo {
+    long long t_ns = 0;
+    double scan_time = 0;
+    std::size_t n = 0;
+  };
+  std::map<long long, ScanInfo> info;
+  {
+    const std::size_t ci = scans.col("scan_idx"), ct = scans.col("bag_t_ns"), cs = scans.col("scan_time"),
+                      cn = scans.col("n_ranges");
+    for (std::size_t r = 0; r < scans.rows.size(); ++r) {
+      ScanInfo s;
+      s.t_ns = scans.integer(r, ct);
+      s.scan_time = scans.num(r, cs);
+      if (!(s.scan_time > 0.0 && s.scan_time < 10.0))
+        throw InputError(scans.path + ":" + std::to_string(scans.line_of[r]) + ": scan_time " + scans.rows[r][cs] +
+                         " s is outside (0, 10)");
+      const long long n = scans.integer(r, cn);
+      if (n < 0) throw InputError(scans.path + ":" + std::to_string(scans.line_of[r]) + ": n_ranges is negative");
+      s.n = static_cast<std::size_t>(n);
+      if (!info.emplace(scans.integer(r, ci), s).second)
+        throw InputError(scans.path + ":" + std::to_string(scans.line_of[r]) + ": scan_idx appears twice");
+    }
+  }
+
+  ImportedRplidar out;
+  out.scans = info.size();
+  for (const auto& [idx, s] : info) out.dropped_scans += s.n == 0;  // empty scans have no beam rows
+  const std::size_t bi = beams.col("scan_idx"), bb = beams.col("beam_idx"), ba = beams.col("angle_rad"),
+                    br = beams.col("range_m"), bq = beams.col("intensity");
+  // Stamps are seconds from 10 s before the first scan (bag times are epoch ns).
+  long long t0_ns = 0;
+  for (const auto& [i, s] : info) t0_ns = t0_ns == 0 ? s.t_ns : std::min(t0_ns, s.t_ns);
+  t0_ns -= 10'000'000'000LL;
+  long long prev_end_ns = std::numeric_limits<long long>::min();
+  Pass cur;
+  int dir_prev = 0;
+  double deg_prev = std::nan("");
+  std::size_t pass_index = 0;
+  const auto close_pass = [&] {
+    if (cur.range.empty()) return;
+    cur.line_begin.push_back(cur.range.size());
+    cur.label.assign(cur.range.size(), Label::kKept);
+    cur.flags.assign(cur.range.size(), 0);
+    cur.index = pass_index++;
+    out.passes.push_back(std::move(cur));
+    cur = Pass{};
+  };
+  std::size_t r = 0;
+  while (r < beams.rows.size()) {
+    const long long idx = beams.integer(r, bi);
+    std::size_t end = r;
+    while (end < beams.rows.size() && beams.integer(end, bi) == idx) ++end;
+    const auto it = info.find(idx);
+    if (it == info.end())
+      throw InputError(beams.path + ":" + std::to_string(beams.line_of[r]) + ": scan_idx " + std::to_string(idx) +
+                       " is not in scans.csv");
+    const ScanInfo& s = it->second;
+    if (end - r != s.n)
+      throw InputError(beams.path + ":" + std::to_string(beams.line_of[r]) + ": scan " + std::to_string(idx) + " has " +
+                       std::to_string(end - r) + " beams, scans.csv says n_ranges " + std::to_string(s.n));
+    // The servo at every beam of the scan, or the scan is dropped.
+    const double n = static_cast<double>(end - r);
+    // Beam times: the sweep ends at the bag time. Receive times jitter (scans nominally 0.1 s long
+    // arrive 0.05-0.3 s apart), so a sweep that would start before the previous one ended starts
+    // at that end instead: stamps must increase from line to line.
+    const long long t_end = s.t_ns;
+    const long long t_start = std::max(t_end - static_cast<long long>(std::llround(s.scan_time * 1e9)), prev_end_ns);
+    if (t_start >= t_end) {
+      ++out.dropped_scans;  // arrived before the previous scan ended: no time left to place it
+      r = end;
+      continue;
+    }
+    std::vector<long long> tb(end - r);
+    std::vector<double> deg(end - r);
+    bool ok = true;
+    for (std::size_t k = r; k < end && ok; ++k) {
+      const double frac = (static_cast<double>(k - r) + 0.5) / n;
+      tb[k - r] = t_start + static_cast<long long>(std::llround(frac * static_cast<double>(t_end - t_start)));
+      ok = servo_at(tb[k - r], deg[k - r]);
+    }
+    if (!ok) {
+      ++out.dropped_scans;
+      r = end;
+      continue;
+    }
+    // A new pass where the servo reverses.
+    const double mid = deg[deg.size() / 2];
+    if (!std::isnan(deg_prev) && std::fabs(mid - deg_prev) > 1e-9) {
+      const int d = mid > deg_prev ? 1 : -1;
+      if (dir_prev != 0 && d != dir_prev && cur.line_begin.size() >= p.min_pass_lines) close_pass();
+      dir_prev = d;
+    }
+    deg_prev = mid;
+    cur.line_begin.push_back(cur.range.size());
+    // The encoder reading of the line, as the contract has it: the servo angle at the line's last
+    // beam, nod positive up = servo_deg - 90 deg (pitch about y = -(servo_deg - 90) deg looks up
+    // for servo_deg > 90). register's skew correction interpolates between line ends.
+    const double nod_end = (deg.back() - 90.0) * kPi / 180.0;
+    for (std::size_t k = r; k < end; ++k) {
+      const double a = beams.num(k, ba), rng = beams.num(k, br), q = beams.num(k, bq);
+      if (rng < 0.0)
+        throw InputError(beams.path + ":" + std::to_string(beams.line_of[k]) + ": range_m " + beams.rows[k][br] +
+                         " is negative");
+      cur.line.push_back(static_cast<std::uint32_t>(idx));
+      cur.beam.push_back(static_cast<std::uint32_t>(beams.integer(k, bb)));
+      cur.stamp.push_back(static_cast<double>(tb[k - r] - t0_ns) * 1e-9);
+      cur.range.push_back(static_cast<float>(rng));  // 0: no return
+      cur.bearing.push_back(static_cast<float>(wrap(a)));
+      cur.nod.push_back(static_cast<float>(nod_end));
+      cur.amplitude.push_back(rng == 0.0 ? 0.0f : static_cast<float>(q));
+    }
+    out.beams += end - r;
+    prev_end_ns = t_end;
+    r = end;
+  }
+  close_pass();
+  if (out.passes.empty()) throw InputError(dir + ": no scan lies within the servo stream; nothing to import");
+  return out;
+}
+
+}  // namespace pcdp::io
