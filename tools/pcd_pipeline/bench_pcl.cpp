@@ -38,11 +38,14 @@ PeerTimes pcl_peers(const std::vector<float>& x, const std::vector<float>& y, co
   pcl::StatisticalOutlierRemoval<pcl::PointXYZ> sor;
   sor.setMeanK(8);
   sor.setStddevMulThresh(1.0);
-  pcl::PointCloud<pcl::PointXYZ> filtered;
+  // The indices form of filter(): the output is a plain std::vector. A cloud allocated inside the
+  // prebuilt libpcl_filters and freed here would cross an Eigen allocation boundary that differs
+  // under AddressSanitizer (Eigen stops trusting malloc's alignment there), which ASan reports.
+  pcl::Indices kept_indices;
   for (int r = 0; r < reps; ++r) {
     sor.setInputCloud(in);
     const auto t0 = Clock::now();
-    sor.filter(filtered);
+    sor.filter(kept_indices);
     t.push_back(std::chrono::duration<double>(Clock::now() - t0).count());
   }
   out.sor = med(t);
