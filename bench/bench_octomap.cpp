@@ -6,8 +6,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <set>
-#include <tuple>
 
 #include "pcdp/octomap_fusion.hpp"
 #include "pcdp/pass.hpp"
@@ -60,15 +58,11 @@ int main() {
     lazy.updateInnerOccupancy();
     t_lazy.push_back(std::chrono::duration<double>(Clock::now() - t0).count());
     if (rep == 0) {
-      std::set<std::tuple<int, int, int>> a;
-      for (auto it = ours.begin_leafs(), end = ours.end_leafs(); it != end; ++it)
-        if (ours.isNodeOccupied(*it)) a.insert({it.getKey()[0], it.getKey()[1], it.getKey()[2]});
-      occ_ours = a.size();
-      for (auto it = theirs.begin_leafs(), end = theirs.end_leafs(); it != end; ++it)
-        if (theirs.isNodeOccupied(*it)) {
-          ++occ_theirs;
-          common += a.count({it.getKey()[0], it.getKey()[1], it.getKey()[2]});
-        }
+      // Finest keys on both sides: pruned leaves are expanded, so the counts compare cell for cell.
+      const auto mine = occupied_keys(ours), their_keys = occupied_keys(theirs);
+      occ_ours = mine.size();
+      occ_theirs = their_keys.size();
+      for (const auto& k : their_keys) common += mine.count(k);
     }
   }
   std::sort(t_ours.begin(), t_ours.end());

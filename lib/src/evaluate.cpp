@@ -20,11 +20,7 @@ namespace {
 std::vector<double> col(const io::PcdTable& t, const std::string& name, const std::string& file) {
   const int k = t.header.field_index(name);
   if (k < 0) throw InputError(file + ": missing field '" + name + "' needed by evaluate");
-  const auto& f = t.header.fields[static_cast<std::size_t>(k)];
-  const auto& c = t.columns[static_cast<std::size_t>(k)];
-  std::vector<double> v(t.header.points);
-  for (std::size_t i = 0; i < v.size(); ++i) v[i] = io::field_value(f, c.data() + i * f.bytes());
-  return v;
+  return io::column_values(t, static_cast<std::size_t>(k));
 }
 
 /// Returns are matched by (line, beam): line indices are unique within a simulated run, so a

@@ -44,4 +44,18 @@ std::uint64_t insert_pass(octomap::OcTree& tree, const Pass& pass, const OctoMap
   return rays;
 }
 
+std::set<std::tuple<int, int, int>> occupied_keys(const octomap::OcTree& tree) {
+  std::set<std::tuple<int, int, int>> s;
+  for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it) {
+    if (!tree.isNodeOccupied(*it)) continue;
+    const int size = static_cast<int>(std::lround(it.getSize() / tree.getResolution()));
+    const octomap::OcTreeKey k = it.getKey();
+    const int half = size / 2;
+    for (int dx = 0; dx < size; ++dx)
+      for (int dy = 0; dy < size; ++dy)
+        for (int dz = 0; dz < size; ++dz) s.insert({k[0] - half + dx, k[1] - half + dy, k[2] - half + dz});
+  }
+  return s;
+}
+
 }  // namespace pcdp

@@ -9,6 +9,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "pcdp/stages/register.hpp"
 #include "pcdp_test_paths.hpp"
 
 namespace fs = std::filesystem;
@@ -101,18 +102,33 @@ std::string pipeline_yaml(const sim::SimConfig& cfg, const std::string& dir, con
 std::vector<double> column(const io::PcdTable& t, const std::string& name) {
   const int k = t.header.field_index(name);
   EXPECT_GE(k, 0) << "no field " << name;
-  std::vector<double> v;
-  if (k < 0) return v;
-  const auto& f = t.header.fields[static_cast<std::size_t>(k)];
-  const auto& col = t.columns[static_cast<std::size_t>(k)];
-  for (std::uint64_t i = 0; i < t.header.points; ++i) v.push_back(io::field_value(f, col.data() + i * f.bytes()));
-  return v;
+  if (k < 0) return {};
+  return io::column_values(t, static_cast<std::size_t>(k));
 }
 
 double median(std::vector<double> v) {
   if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
   std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
   return v[v.size() / 2];
+}
+
+Pass line_pass(const std::vector<float>& ranges, const std::vector<float>& amps) {
+  Pass p;
+  const std::size_t n = ranges.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    p.line.push_back(0);
+    p.beam.push_back(static_cast<std::uint32_t>(i));
+    p.range.push_back(ranges[i]);
+    p.bearing.push_back(0.01f * static_cast<float>(i));
+    p.amplitude.push_back(amps[i]);
+    p.nod.push_back(0.0f);
+    p.stamp.push_back(1e-4 * static_cast<double>(i));
+  }
+  p.line_begin = {0, n};
+  p.label.assign(n, Label::kKept);
+  p.flags.assign(n, 0);
+  register_pass(p, RegisterParams{}, SensorParams{}, Eigen::Isometry3d::Identity(), nullptr);
+  return p;
 }
 
 }  // namespace pcdp::test

@@ -35,4 +35,8 @@ std::vector<double> column(const io::PcdTable& t, const std::string& name);
 
 double median(std::vector<double> v);
 
+/// A pass of one scan line: the given ranges and amplitudes, bearings 0.01 rad apart, nod 0,
+/// registered with an identity pose and default sensor.
+Pass line_pass(const std::vector<float>& ranges, const std::vector<float>& amps);
+
 }  // namespace pcdp::test

@@ -10,21 +10,6 @@
 using namespace pcdp;
 
 namespace {
-std::set<std::tuple<int, int, int>> occupied(const octomap::OcTree& t) {
-  std::set<std::tuple<int, int, int>> s;
-  for (auto it = t.begin_leafs(), end = t.end_leafs(); it != end; ++it)
-    if (t.isNodeOccupied(*it)) {
-      // Expand coarser leaves (pruned) to the finest keys they cover.
-      const int size = static_cast<int>(std::lround(it.getSize() / t.getResolution()));
-      const octomap::OcTreeKey k = it.getKey();
-      const int half = size / 2;
-      for (int dx = 0; dx < size; ++dx)
-        for (int dy = 0; dy < size; ++dy)
-          for (int dz = 0; dz < size; ++dz) s.insert({k[0] - half + dx, k[1] - half + dy, k[2] - half + dz});
-    }
-  return s;
-}
-
 std::vector<Pass> static_vehicle_passes() {
   bench::Setting st = bench::make_setting('A', 1);
   st.sim.motion.speed = 0.0;  // one sensor origin per pass: insertPointCloud sees the same rays
@@ -59,7 +44,7 @@ TEST(OctoMapFusion, AgreesWithInsertPointCloudFedTheSameRays) {
     }
     theirs.insertPointCloud(cloud, origin, prm.max_range);
   }
-  const auto a = occupied(ours), b = occupied(theirs);
+  const auto a = occupied_keys(ours), b = occupied_keys(theirs);
   std::size_t common = 0;
   for (const auto& k : b) common += a.count(k);
   std::cout << "occupied keys: ours " << a.size() << ", insertPointCloud " << b.size() << ", common " << common << "\n";
@@ -81,7 +66,7 @@ TEST(OctoMapFusion, InsertingLineByLineLosesOccupiedCells) {
       insert_pass(by_line, line, prm);
     }
   }
-  const double nb = static_cast<double>(occupied(batched).size()), nl = static_cast<double>(occupied(by_line).size());
+  const double nb = static_cast<double>(occupied_keys(batched).size()), nl = static_cast<double>(occupied_keys(by_line).size());
   std::cout << "occupied keys: batched per pass " << nb << ", line by line " << nl << " (" << 100 * (1 - nl / nb)
             << " % lost)\n";
   EXPECT_LT(nl, 0.9 * nb);

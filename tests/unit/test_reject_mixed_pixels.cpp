@@ -13,30 +13,11 @@
 #include "pcdp/stages/reject_mixed_pixels.hpp"
 #include "pcdp/stages/reject_occlusion.hpp"
 #include "pcdp_test_paths.hpp"
+#include "test_support.hpp"
 
 using namespace pcdp;
 
 namespace {
-/// One scan line: ranges and amplitudes, bearings 0.01 rad apart, registered with identity pose.
-Pass line_pass(const std::vector<float>& ranges, const std::vector<float>& amps) {
-  Pass p;
-  const std::size_t n = ranges.size();
-  for (std::size_t i = 0; i < n; ++i) {
-    p.line.push_back(0);
-    p.beam.push_back(static_cast<std::uint32_t>(i));
-    p.range.push_back(ranges[i]);
-    p.bearing.push_back(0.01f * static_cast<float>(i));
-    p.amplitude.push_back(amps[i]);
-    p.nod.push_back(0.0f);
-    p.stamp.push_back(1e-4 * static_cast<double>(i));
-  }
-  p.line_begin = {0, n};
-  p.label.assign(n, Label::kKept);
-  p.flags.assign(n, 0);
-  register_pass(p, RegisterParams{}, SensorParams{}, Eigen::Isometry3d::Identity(), nullptr);
-  return p;
-}
-
 SensorParams coaxial_sensor() {
   SensorParams s;
   s.transceiver_separation = 0.0;
@@ -52,7 +33,7 @@ TEST(RejectMixedPixels, AVeilBetweenTwoSurfacesIsFlaggedAndTheSurfacesAreNot) {
     r.push_back(10.0f);
     a.push_back(100.0f);
   }
-  Pass p = line_pass(r, a);
+  Pass p = test::line_pass(r, a);
   EXPECT_EQ(reject_mixed_pixels(p, MixedPixelParams{}, coaxial_sensor()), 1u);
   EXPECT_EQ(p.label[10], Label::kMixedPixel);
   // Only the return itself, never a window of neighbours.
@@ -68,18 +49,18 @@ TEST(RejectMixedPixels, AMuchBrighterReturnBetweenTheSurfacesIsARealObject) {
     r.push_back(10.0f);
     a.push_back(40.0f);
   }
-  Pass p = line_pass(r, a);
+  Pass p = test::line_pass(r, a);
   EXPECT_EQ(reject_mixed_pixels(p, MixedPixelParams{}, coaxial_sensor()), 0u);
 }
 
 TEST(RejectMixedPixels, AThinPostAndASmoothSlopeAreKept) {
   std::vector<float> r(21, 10.0f), a(21, 60.0f);
   r[10] = 5.0f;  // a post one return wide
-  Pass p = line_pass(r, a);
+  Pass p = test::line_pass(r, a);
   EXPECT_EQ(reject_mixed_pixels(p, MixedPixelParams{}, coaxial_sensor()), 0u);
   std::vector<float> slope;
   for (int i = 0; i < 30; ++i) slope.push_back(6.0f + 0.4f * static_cast<float>(i) + 0.01f * static_cast<float>(i * i));
-  Pass q = line_pass(slope, std::vector<float>(30, 60.0f));
+  Pass q = test::line_pass(slope, std::vector<float>(30, 60.0f));
   EXPECT_EQ(reject_mixed_pixels(q, MixedPixelParams{}, coaxial_sensor()), 0u);
 }
 

@@ -8,6 +8,7 @@
 #include "pcdp/sim/bench_scenes.hpp"
 #include "pcdp/stages/register.hpp"
 #include "pcdp/stages/reject_occlusion.hpp"
+#include "test_support.hpp"
 
 using namespace pcdp;
 
@@ -48,27 +49,6 @@ Outcome run_setting(char which, std::uint64_t seed, const OcclusionParams& prm, 
   return o;
 }
 
-/// One scan line in a pass: ranges and amplitudes given, bearings 0.01 rad apart, registered with
-/// an identity pose.
-Pass line_pass(const std::vector<float>& ranges, const std::vector<float>& amps) {
-  Pass p;
-  const std::size_t n = ranges.size();
-  for (std::size_t i = 0; i < n; ++i) {
-    p.line.push_back(0);
-    p.beam.push_back(static_cast<std::uint32_t>(i));
-    p.range.push_back(ranges[i]);
-    p.bearing.push_back(0.01f * static_cast<float>(i));
-    p.amplitude.push_back(amps[i]);
-    p.nod.push_back(0.0f);
-    p.stamp.push_back(1e-4 * static_cast<double>(i));
-  }
-  p.line_begin = {0, n};
-  p.label.assign(n, Label::kKept);
-  p.flags.assign(n, 0);
-  SensorParams s;
-  register_pass(p, RegisterParams{}, s, Eigen::Isometry3d::Identity(), nullptr);
-  return p;
-}
 }  // namespace
 
 TEST(RejectOcclusion, MeetsRecallAndFalseRejectionOnTwoSensorSettings) {
@@ -107,7 +87,7 @@ TEST(RejectOcclusion, NoisyNearThresholdValidReturnsAreKept) {
     r.push_back(15.0f + 0.02f * static_cast<float>(i));
     a.push_back(static_cast<float>(18 + ((i * 7) % 9) - 4));  // 14 .. 22
   }
-  Pass p = line_pass(r, a);
+  Pass p = test::line_pass(r, a);
   SensorParams s;
   s.min_amplitude = 18;
   const OcclusionCounts c = reject_occlusion(p, OcclusionParams{}, s);
@@ -128,20 +108,20 @@ TEST(RejectOcclusion, ADipAtAnEdgeIsOcclusionAndAWeakReturnElsewhereIsLowAmplitu
   // The near side is at lower bearing; with theta = 0 the receiver (+bearing side) is on the far
   // side: no dip. theta = pi puts it on the near side (Liu et al. Fig. 13's configuration).
   s.transceiver_angle_offset = 3.14159265358979;
-  Pass p = line_pass(r, a);
+  Pass p = test::line_pass(r, a);
   reject_occlusion(p, OcclusionParams{}, s);
   EXPECT_EQ(p.label[4], Label::kOcclusion);
   EXPECT_EQ(p.label[11], Label::kLowAmplitude);
   EXPECT_EQ(p.kept(), p.size() - 2);
   // A coaxial sensor predicts no dip: the same false range is only a weak return.
   s.transceiver_separation = 0.0;
-  Pass q = line_pass(r, a);
+  Pass q = test::line_pass(r, a);
   reject_occlusion(q, OcclusionParams{}, s);
   EXPECT_EQ(q.label[4], Label::kLowAmplitude);
   // Receiver on the far side: no occlusion either.
   s.transceiver_separation = 0.029;
   s.transceiver_angle_offset = 0.0;
-  Pass w = line_pass(r, a);
+  Pass w = test::line_pass(r, a);
   reject_occlusion(w, OcclusionParams{}, s);
   EXPECT_EQ(w.label[4], Label::kLowAmplitude);
 }
@@ -176,7 +156,7 @@ TEST(RejectOcclusion, UnmeasuredAmplitudeIsNeverJudgedWeak) {
     a.push_back(NAN);
   }
   r[20] = 8.0f;  // a lone range between the surfaces, as a false range would be
-  Pass p = line_pass(r, a);
+  Pass p = test::line_pass(r, a);
   SensorParams s;
   s.min_amplitude = 18;
   const OcclusionCounts c = reject_occlusion(p, OcclusionParams{}, s);

@@ -16,14 +16,13 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
-#include <set>
 #include <sstream>
-#include <tuple>
 
 #include "pcdp/config.hpp"
 #include "pcdp/errors.hpp"
 #include "pcdp/io/pcd.hpp"
 #include "pcdp/io/poses.hpp"
+#include "pcdp/octomap_fusion.hpp"
 #include "pcdp/pass.hpp"
 #include "pcdp/pipeline.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
@@ -119,15 +118,9 @@ Registered register_all(const PipelineConfig& c, const fs::path& returns_pcd) {
   const Eigen::Isometry3d T_V_N = make_transform(c.mount.translation, c.mount.rpy, c.rpy_order);
   const io::PcdTable t = io::read_pcd(returns_pcd.string());
   const auto col = [&](const char* name) {
-    for (std::size_t f = 0; f < t.header.fields.size(); ++f)
-      if (t.header.fields[f].name == name) {
-        const io::PcdField& fd = t.header.fields[f];
-        const std::size_t w = static_cast<std::size_t>(fd.size);
-        std::vector<double> v(t.columns[f].size() / w);
-        for (std::size_t i = 0; i < v.size(); ++i) v[i] = io::field_value(fd, t.columns[f].data() + i * w);
-        return v;
-      }
-    throw InputError(returns_pcd.string() + ": no field '" + name + "'");
+    const int k = t.header.field_index(name);
+    if (k < 0) throw InputError(returns_pcd.string() + ": no field '" + name + "'");
+    return io::column_values(t, static_cast<std::size_t>(k));
   };
   const std::vector<double> label = col("label"), tline = col("line"), tbeam = col("beam");
   Registered out;
@@ -277,15 +270,11 @@ int cmd_bench(const BenchArgs& a) {
     }
     t_oct.push_back(std::chrono::duration<double>(Clock::now() - t0).count());
     if (rep == 0 && have_map) {
-      std::set<std::tuple<int, int, int>> mine;
-      for (auto it = ours.begin_leafs(), end = ours.end_leafs(); it != end; ++it)
-        if (ours.isNodeOccupied(*it)) mine.insert({it.getKey()[0], it.getKey()[1], it.getKey()[2]});
+      // Finest keys on both sides: pruned leaves are expanded, so the counts compare cell for cell.
+      const auto mine = occupied_keys(ours), their_keys = occupied_keys(theirs);
       occ_ours = mine.size();
-      for (auto it = theirs.begin_leafs(), end = theirs.end_leafs(); it != end; ++it)
-        if (theirs.isNodeOccupied(*it)) {
-          ++occ_theirs;
-          common += mine.count({it.getKey()[0], it.getKey()[1], it.getKey()[2]});
-        }
+      occ_theirs = their_keys.size();
+      for (const auto& k : their_keys) common += mine.count(k);
     }
   }
   const double t_octomap = median(t_oct);

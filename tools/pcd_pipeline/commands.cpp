@@ -444,6 +444,21 @@ int cmd_docs() {
   return 0;
 }
 
+namespace {
+/// Writes imported passes as OUT/pass_NNN.pcd (each atomically); returns the number of returns.
+std::size_t write_passes(const std::vector<Pass>& passes, const std::string& out_dir) {
+  std::filesystem::create_directories(out_dir);
+  std::size_t n = 0;
+  for (std::size_t k = 0; k < passes.size(); ++k) {
+    char name[32];
+    std::snprintf(name, sizeof name, "pass_%03zu.pcd", k);
+    sim::write_pass_pcd(passes[k], (std::filesystem::path(out_dir) / name).string());
+    n += passes[k].size();
+  }
+  return n;
+}
+}  // namespace
+
 int cmd_import(const std::string& format, const std::vector<std::string>& inputs, const std::string& out_dir,
                const std::string& poses) {
   if (format == "rplidar") {
@@ -451,12 +466,7 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
       throw ConfigError("import rplidar: expected one folder (with scans.csv, beams.csv, servo.csv), got " +
                         std::to_string(inputs.size()) + " inputs");
     const io::ImportedRplidar r = io::import_rplidar(inputs[0]);
-    std::filesystem::create_directories(out_dir);
-    for (std::size_t k = 0; k < r.passes.size(); ++k) {
-      char name[32];
-      std::snprintf(name, sizeof name, "pass_%03zu.pcd", k);
-      sim::write_pass_pcd(r.passes[k], (std::filesystem::path(out_dir) / name).string());
-    }
+    write_passes(r.passes, out_dir);
     std::printf("imported %zu LaserScan(s) (%zu dropped: empty or outside the servo stream), %zu returns in %zu pass(es) "
                 "-> %s (pass_*.pcd; no pose file: T_M_V = identity)\n",
                 r.scans, r.dropped_scans, r.beams, r.passes.size(), out_dir.c_str());
@@ -468,14 +478,7 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
   if (poses != "odometry" && poses != "frames")
     throw ConfigError("import 3dtk: --poses must be odometry or frames, not '" + poses + "'");
   const io::Imported3dtk r = io::import_3dtk(inputs, poses == "frames");
-  std::filesystem::create_directories(out_dir);
-  std::size_t n = 0;
-  for (std::size_t k = 0; k < r.passes.size(); ++k) {
-    char name[32];
-    std::snprintf(name, sizeof name, "pass_%03zu.pcd", k);
-    sim::write_pass_pcd(r.passes[k], (std::filesystem::path(out_dir) / name).string());
-    n += r.passes[k].size();
-  }
+  const std::size_t n = write_passes(r.passes, out_dir);
   sim::write_pose_csv(r.poses, RpyOrder::kXyz, (std::filesystem::path(out_dir) / "poses.csv").string());
   std::printf("imported %zu 3DTK scan(s), %zu returns, %s poses -> %s (pass_*.pcd, poses.csv; rpy_order xyz)\n",
               r.passes.size(), n, poses.c_str(), out_dir.c_str());

@@ -9,6 +9,9 @@
 // does. This header includes OctoMap; the rest of the library does not need it.
 #pragma once
 
+#include <set>
+#include <tuple>
+
 #include <octomap/OcTree.h>
 
 #include <cstdint>
@@ -31,5 +34,9 @@ octomap::OcTree make_octree(const OctoMapParams& p);
 
 /// Inserts the kept returns of a registered pass. Returns the number of rays cast.
 std::uint64_t insert_pass(octomap::OcTree& tree, const Pass& pass, const OctoMapParams& p);
+
+/// The occupied cells of a tree as finest-resolution keys (pruned leaves expanded to the keys they
+/// cover), for comparing two maps cell by cell.
+std::set<std::tuple<int, int, int>> occupied_keys(const octomap::OcTree& tree);
 
 }  // namespace pcdp

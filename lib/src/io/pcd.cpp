@@ -399,4 +399,12 @@ void PcdWriter::close(std::uint64_t height) {
   if (!ok) throw std::runtime_error(path_ + ": write failed (" + std::strerror(errno) + ")");
 }
 
+std::vector<double> column_values(const PcdTable& t, std::size_t k) {
+  const PcdField& f = t.header.fields[k];
+  const std::vector<std::uint8_t>& c = t.columns[k];
+  std::vector<double> v(t.header.points);
+  for (std::size_t i = 0; i < v.size(); ++i) v[i] = field_value(f, c.data() + i * f.bytes());
+  return v;
+}
+
 }  // namespace pcdp::io

@@ -50,6 +50,9 @@ PcdTable read_pcd(const std::string& path);
 /// Decodes one numeric value of a field to double.
 double field_value(const PcdField& f, const std::uint8_t* p);
 
+/// Every value of field `k` (an index into header.fields) of a table, decoded to double.
+std::vector<double> column_values(const PcdTable& t, std::size_t k);
+
 /// Streaming writer of a binary PCD whose point count is known only at the end: the body goes
 /// to `path + ".body"` and close() writes the header and body to `path`. Both are temporary
 /// names chosen by the caller; nothing is renamed into place here.
