@@ -232,7 +232,9 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
 
 std::vector<char> mixed_pixels_in_cloud(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& viewpoint,
                                         const std::vector<float>& amplitude, double resolution,
-                                        const MixedPixelParams& p, double range_sigma) {
+                                        const MixedPixelParams& p, double range_sigma, CloudAngles angles,
+                                        const Eigen::Quaterniond& orientation) {
+  const Eigen::Matrix3d R_cloud_sensor = orientation.normalized().toRotationMatrix();
   const std::size_t n = points.size();
   std::vector<double> x(n), y(n), z(n), ox(n, viewpoint.x()), oy(n, viewpoint.y()), oz(n, viewpoint.z());
   std::vector<float> range(n);
@@ -245,8 +247,14 @@ std::vector<char> mixed_pixels_in_cloud(const std::vector<Eigen::Vector3d>& poin
     z[i] = points[i].z();
     range[i] = static_cast<float>(d.norm());
     usable[i] = std::isfinite(range[i]) && range[i] > 0;
-    az[i] = std::atan2(d.y(), d.x());
-    el[i] = std::atan2(d.z(), std::hypot(d.x(), d.y()));
+    const Eigen::Vector3d ds = R_cloud_sensor.transpose() * d;
+    if (angles == CloudAngles::kNodding) {  // az: bearing in the scan plane, el: nod of the plane
+      az[i] = std::atan2(ds.y(), std::hypot(ds.x(), ds.z()));
+      el[i] = std::atan2(ds.z(), ds.x());
+    } else {
+      az[i] = std::atan2(ds.y(), ds.x());
+      el[i] = std::atan2(ds.z(), std::hypot(ds.x(), ds.y()));
+    }
   }
   ReturnsView v{n, x.data(), y.data(), z.data(), ox.data(), oy.data(), oz.data(), range.data(),
                 amplitude.size() == n ? amplitude.data() : nullptr, usable.data()};

@@ -30,6 +30,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <vector>
 
 #include "pcdp/config.hpp"
@@ -76,13 +77,24 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
 /// The stage's function over a registered pass: labels mixed pixels, returns how many.
 std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor);
 
+/// How an unorganized cloud's points are put back into scan order.
+enum class CloudAngles {
+  kNodding,    ///< a nodding 2-D scanner: rows of equal nod atan2(z, x), sorted by bearing atan2(y, hypot(x, z))
+  kSpherical,  ///< rows of equal elevation, sorted by azimuth (e.g. a panning scanner, a range camera)
+};
+
 /// An unorganized Cartesian cloud seen from one viewpoint (e.g. a cloud someone already has):
-/// points are ordered into a spherical range image (elevation bands sorted by azimuth, azimuth
-/// bands sorted by elevation, `resolution` rad wide, about the scan's angular step) and the same
-/// tests run along both. `amplitude` may be empty. Returns a mask of mixed pixels.
+/// points are ordered into a range image in the sensor frame (`orientation`: sensor frame in the
+/// cloud frame): rows `resolution` rad wide sorted along the row, columns sorted across, and the
+/// same tests run along both. A nodding scanner's lines are rows of equal nod (kNodding); its
+/// elevation varies along a line, so elevation bands (kSpherical) cut across its lines.
+/// `resolution` is about the scan's angular step. `amplitude` may be empty. Returns a mask of
+/// mixed pixels.
 std::vector<char> mixed_pixels_in_cloud(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& viewpoint,
                                         const std::vector<float>& amplitude, double resolution,
-                                        const MixedPixelParams& p, double range_sigma);
+                                        const MixedPixelParams& p, double range_sigma,
+                                        CloudAngles angles = CloudAngles::kSpherical,
+                                        const Eigen::Quaterniond& orientation = Eigen::Quaterniond::Identity());
 
 StageInfo reject_mixed_pixels_stage_info();
 
