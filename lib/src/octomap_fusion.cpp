@@ -18,11 +18,12 @@ octomap::OcTree make_octree(const OctoMapParams& p) {
   return tree;
 }
 
-std::uint64_t insert_pass(octomap::OcTree& tree, const Pass& pass, const OctoMapParams& p) {
-  // The tree is updated lazily (leaves only) and its inner nodes once at the end of the pass.
-  octomap::KeySet free_cells, occupied_cells;
+PassRays cast_pass(const octomap::OcTree& tree, const Pass& pass, const OctoMapParams& p) {
+  PassRays out;
+  octomap::KeySet& free_cells = out.free_cells;
+  octomap::KeySet& occupied_cells = out.occupied_cells;
   octomap::KeyRay ray;
-  std::uint64_t rays = 0;
+  std::uint64_t& rays = out.rays;
   for (std::size_t i = 0; i < pass.size(); ++i) {
     if (!pass.is_kept(i) || !std::isfinite(pass.x[i]) || !std::isfinite(pass.ox[i])) continue;
     const octomap::point3d o(static_cast<float>(pass.ox[i]), static_cast<float>(pass.oy[i]), static_cast<float>(pass.oz[i]));
@@ -37,11 +38,21 @@ std::uint64_t insert_pass(octomap::OcTree& tree, const Pass& pass, const OctoMap
     octomap::OcTreeKey k;
     if (tree.coordToKeyChecked(e, k)) (hit ? occupied_cells : free_cells).insert(k);  // a cut end is free
   }
-  for (const auto& k : free_cells)
-    if (occupied_cells.find(k) == occupied_cells.end()) tree.updateNode(k, false, true);
-  for (const auto& k : occupied_cells) tree.updateNode(k, true, true);
+  return out;
+}
+
+void apply_rays(octomap::OcTree& tree, const PassRays& r) {
+  // The tree is updated lazily (leaves only) and its inner nodes once at the end of the pass.
+  for (const auto& k : r.free_cells)
+    if (r.occupied_cells.find(k) == r.occupied_cells.end()) tree.updateNode(k, false, true);
+  for (const auto& k : r.occupied_cells) tree.updateNode(k, true, true);
   tree.updateInnerOccupancy();
-  return rays;
+}
+
+std::uint64_t insert_pass(octomap::OcTree& tree, const Pass& pass, const OctoMapParams& p) {
+  const PassRays r = cast_pass(tree, pass, p);
+  apply_rays(tree, r);
+  return r.rays;
 }
 
 std::set<std::tuple<int, int, int>> occupied_keys(const octomap::OcTree& tree) {

@@ -1,6 +1,8 @@
 #include "pcdp/pipeline.hpp"
 
+#include <algorithm>
 #include <chrono>
+#include <mutex>
 #include <nlohmann/json.hpp>
 
 #include "pcdp/errors.hpp"
@@ -8,6 +10,7 @@
 #include "pcdp/io/outputs.hpp"
 #include "pcdp/io/poses.hpp"
 #include "pcdp/pass.hpp"
+#include "ordered_parallel.hpp"
 
 #ifndef PCDP_VERSION
 #define PCDP_VERSION "unknown"
@@ -47,11 +50,58 @@ Pipeline Pipeline::prepare(PipelineConfig config) {
   return p;
 }
 
-RunSummary Pipeline::run(const ProgressFn& progress) {
+namespace {
+/// One pass after the part of the chain a worker thread may run (see Stage::concurrent/split).
+struct Processed {
+  Pass pass;
+  std::vector<StageReport> reports;  ///< this pass's share of each stage's report
+  std::vector<std::unique_ptr<StageWork>> works;
+  std::size_t stop = 0;  ///< the first stage the worker did not run
+};
+
+void merge_report(StageReport& into, const StageReport& r) {
+  into.in += r.in;
+  into.out += r.out;
+  for (std::size_t l = 0; l < kLabelCount; ++l) into.rejected[l] += r.rejected[l];
+  into.seconds += r.seconds;
+  for (const auto& [k, v] : r.metrics) into.metrics[k] += v;
+  into.warnings.insert(into.warnings.end(), r.warnings.begin(), r.warnings.end());
+}
+
+/// An OutputSink that may be called from several threads.
+class LockedSink final : public OutputSink {
+ public:
+  explicit LockedSink(OutputSink& s) : s_(s) {}
+  std::string staged_path(const std::string& filename) override {
+    std::lock_guard<std::mutex> lock(m_);
+    return s_.staged_path(filename);
+  }
+
+ private:
+  OutputSink& s_;
+  std::mutex m_;
+};
+
+/// process() with the accounting of what it changed.
+void run_stage(Stage& stage, Pass& pass, StageReport& rep) {
+  const LabelHistogram before = histogram(pass);
+  const auto t0 = std::chrono::steady_clock::now();
+  stage.process(pass, rep);
+  rep.seconds += seconds_since(t0);
+  const LabelHistogram after = histogram(pass);
+  rep.in += before[0];
+  rep.out += after[0];
+  for (std::size_t l = 1; l < kLabelCount; ++l)
+    if (after[l] > before[l]) rep.rejected[l] += after[l] - before[l];
+}
+}  // namespace
+
+RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   const auto t_run = std::chrono::steady_clock::now();
   const PipelineConfig& cfg = *config_;
   RunSummary sum;
   sum.output_dir = cfg.output_dir;
+  sum.threads = std::max(1u, threads);
   for (const auto& sc : cfg.stages) {
     StageReport r;
     r.name = sc.name;
@@ -65,59 +115,119 @@ RunSummary Pipeline::run(const ProgressFn& progress) {
   const std::string report_tmp = out.staged_path("report.json");
 
   const std::size_t np = cfg.scans.size();
+  const std::size_t window = sum.threads + 1;  // passes in memory at once: bounded, whatever np
   // Prepass: stages that need every pass's evidence first (passes are streamed, never all held).
+  // Only the stages that change the pass run before it; split (fusion) stages do not.
   for (std::size_t s = 0; s < stages_.size(); ++s) {
     if (!stages_[s]->wants_prepass()) continue;
-    for (std::size_t k = 0; k < np; ++k) {
-      if (progress) progress({k, np, cfg.scans[k], "prepass " + cfg.stages[s].name});
-      Pass pass = read_pass(cfg.scans[k], k);
-      StageReport scratch;
-      for (std::size_t e = 0; e < s; ++e) stages_[e]->process(pass, scratch);
-      stages_[s]->prepass(pass);
-    }
+    std::size_t par = 0;  // the prefix a worker may run
+    while (par < s && (stages_[par]->concurrent() || stages_[par]->split())) ++par;
+    // The worker also computes the stage's evidence when it ran the whole prefix.
+    const bool early = par == s && stages_[s]->prepass_split();
+    struct Pre {
+      Pass pass;
+      std::unique_ptr<StageWork> work;
+    };
+    detail::ordered_parallel<Pre>(
+        np, sum.threads, window,
+        [&](std::size_t k) {
+          Pre r{read_pass(cfg.scans[k], k), nullptr};
+          StageReport scratch;
+          for (std::size_t e = 0; e < par; ++e)
+            if (stages_[e]->concurrent()) stages_[e]->process(r.pass, scratch);
+          if (early) {
+            r.work = stages_[s]->prepass_compute(r.pass);
+            r.pass = Pass{};  // only the evidence travels on
+          }
+          return r;
+        },
+        [&](std::size_t k, Pre&& r) {
+          if (progress) progress({k, np, cfg.scans[k], "prepass " + cfg.stages[s].name});
+          if (early) {
+            stages_[s]->prepass_apply(std::move(r.work));
+            return;
+          }
+          StageReport scratch;
+          for (std::size_t e = par; e < s; ++e)
+            if (!stages_[e]->split()) stages_[e]->process(r.pass, scratch);
+          stages_[s]->prepass(r.pass);
+        });
   }
   std::int64_t last_line = -1;
   std::string last_file;
-  for (std::size_t k = 0; k < np; ++k) {
-    const auto emit = [&](const std::string& step) {
-      if (progress) progress({k, np, cfg.scans[k], step});
-    };
-    emit("read");
-    Pass pass = read_pass(cfg.scans[k], k);
-    if (pass.size() > 0) {
-      if (static_cast<std::int64_t>(pass.line.front()) <= last_line)
-        throw InputError(pass.source + ": field 'line': its first line " + std::to_string(pass.line.front()) +
-                         " is not after the last line " + std::to_string(last_line) + " of " + last_file +
-                         " (line indices are unique within a run and increase with time)");
-      last_line = pass.line.back();
-      last_file = pass.source;
-    }
-    for (std::size_t s = 0; s < stages_.size(); ++s) {
-      emit(cfg.stages[s].name);
-      StageReport& rep = sum.stages[s];
-      const LabelHistogram before = histogram(pass);
-      const auto t0 = std::chrono::steady_clock::now();
-      stages_[s]->process(pass, rep);
-      rep.seconds += seconds_since(t0);
-      const LabelHistogram after = histogram(pass);
-      rep.in += before[0];
-      rep.out += after[0];
-      for (std::size_t l = 1; l < kLabelCount; ++l)
-        if (after[l] > before[l]) rep.rejected[l] += after[l] - before[l];
-    }
-    emit("write");
-    returns.append(pass);
-    cloud.append(pass);
-    const LabelHistogram h = histogram(pass);
-    for (std::size_t l = 0; l < kLabelCount; ++l) sum.labels[l] += h[l];
-    sum.input_returns += pass.size();
-    sum.passes.push_back({pass.source, pass.size(), pass.line_count(), h[0]});
-  }
-  for (std::size_t s = 0; s < stages_.size(); ++s) {
-    const auto t0 = std::chrono::steady_clock::now();
-    stages_[s]->finish(out, sum.stages[s]);
-    sum.stages[s].seconds += seconds_since(t0);
-  }
+  detail::ordered_parallel<Processed>(
+      np, sum.threads, window,
+      [&](std::size_t k) {
+        Processed r;
+        r.pass = read_pass(cfg.scans[k], k);
+        r.reports.resize(stages_.size());
+        r.works.resize(stages_.size());
+        for (r.stop = 0; r.stop < stages_.size(); ++r.stop) {
+          Stage& st = *stages_[r.stop];
+          StageReport& rep = r.reports[r.stop];
+          if (st.concurrent()) {
+            run_stage(st, r.pass, rep);
+          } else if (st.split()) {
+            const auto t0 = std::chrono::steady_clock::now();
+            r.works[r.stop] = st.compute(r.pass, rep);
+            rep.seconds += seconds_since(t0);
+            rep.in += r.pass.kept();
+            rep.out += r.pass.kept();
+          } else {
+            break;
+          }
+        }
+        return r;
+      },
+      [&](std::size_t k, Processed&& r) {
+        const auto emit = [&](const std::string& step) {
+          if (progress) progress({k, np, cfg.scans[k], step});
+        };
+        Pass& pass = r.pass;
+        if (pass.size() > 0) {
+          if (static_cast<std::int64_t>(pass.line.front()) <= last_line)
+            throw InputError(pass.source + ": field 'line': its first line " + std::to_string(pass.line.front()) +
+                             " is not after the last line " + std::to_string(last_line) + " of " + last_file +
+                             " (line indices are unique within a run and increase with time)");
+          last_line = pass.line.back();
+          last_file = pass.source;
+        }
+        for (std::size_t s = 0; s < stages_.size(); ++s) {
+          emit(cfg.stages[s].name);
+          StageReport& rep = sum.stages[s];
+          if (s < r.stop) {
+            if (stages_[s]->split()) {
+              const auto t0 = std::chrono::steady_clock::now();
+              stages_[s]->apply(std::move(r.works[s]), rep);
+              const double dt = seconds_since(t0);
+              rep.seconds += dt;
+              rep.metrics["in_order_seconds"] += dt;  // the part threads cannot share
+            }
+            merge_report(rep, r.reports[s]);
+          } else {
+            run_stage(*stages_[s], pass, rep);
+          }
+        }
+        emit("write");
+        returns.append(pass);
+        cloud.append(pass);
+        const LabelHistogram h = histogram(pass);
+        for (std::size_t l = 0; l < kLabelCount; ++l) sum.labels[l] += h[l];
+        sum.input_returns += pass.size();
+        sum.passes.push_back({pass.source, pass.size(), pass.line_count(), h[0]});
+      });
+  // finish() touches only its own stage (and the sink, guarded here), so with threads the stages
+  // write their products at the same time; errors are reported in stage order.
+  LockedSink sink(out);
+  detail::ordered_parallel<int>(
+      stages_.size(), sum.threads, stages_.size(),
+      [&](std::size_t s) {
+        const auto t0 = std::chrono::steady_clock::now();
+        stages_[s]->finish(sink, sum.stages[s]);
+        sum.stages[s].seconds += seconds_since(t0);
+        return 0;
+      },
+      [](std::size_t, int) {});
   returns.close();
   cloud.close();
   if (returns.points() != sum.input_returns)
@@ -206,6 +316,7 @@ std::string report_json(const PipelineConfig& cfg, const RunSummary& sum) {
   }
   j["warnings"] = sum.warnings;
   j["seconds"] = sum.seconds;
+  j["threads"] = sum.threads;
   return j.dump(2) + "\n";
 }
 

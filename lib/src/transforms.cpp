@@ -1,5 +1,7 @@
 #include "pcdp/transforms.hpp"
 
+#include <string>
+
 #include <algorithm>
 #include <cassert>
 #include <cmath>
@@ -90,6 +92,14 @@ PoseTrack::PoseTrack(std::vector<PoseSample> samples) : samples_(std::move(sampl
     assert(samples_[i].stamp > samples_[i - 1].stamp);
   }
   for (auto& s : samples_) s.orientation.normalize();
+}
+
+void PoseTrack::append(PoseSample s) {
+  if (!samples_.empty() && !(s.stamp > samples_.back().stamp))
+    throw std::invalid_argument("pose stamp " + std::to_string(s.stamp) + " is not after the last one " +
+                                std::to_string(samples_.back().stamp));
+  s.orientation.normalize();
+  samples_.push_back(std::move(s));
 }
 
 std::size_t PoseTrack::bracket(double stamp, std::size_t hint) const {

@@ -799,3 +799,56 @@ TEST(Rplidar, ImportRefusesBrokenCsvNamingFileLineAndRule) {
   EXPECT_NE(r.err.find("scans.csv:1: no column 'scan_time'"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(dir + "/out/pass_000.pcd"));
 }
+
+TEST(Cli, OneAndTwoThreadsWriteIdenticalOutputs) {
+  // The whole sample chain (prepass, reject stages, both fusions) on 1 and on 2 worker threads:
+  // every output file byte for byte; report.json only differs in timings and the thread count.
+  const std::string dir = test::fresh_dir();
+  const std::string yaml = std::string(PCDP_SOURCE_DIR) + "/pipelines/nodding_terrain.yaml";
+  for (const char* j : {"1", "2"}) {
+    const auto res = run_cli({"run", yaml, "--quiet", "--threads", j, "--output-dir", dir + "/j" + j});
+    ASSERT_EQ(res.exit_code, 0) << res.err;
+  }
+  std::size_t compared = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir + "/j1")) {
+    const std::string name = e.path().filename().string();
+    const std::string a = test::read_text(e.path().string()), b = test::read_text(dir + "/j2/" + name);
+    if (name == "report.json") {
+      const auto ja = nlohmann::json::parse(a), jb = nlohmann::json::parse(b);
+      EXPECT_EQ(ja["threads"], 1);
+      EXPECT_EQ(jb["threads"], 2);
+      EXPECT_EQ(ja["labels"], jb["labels"]);
+      for (std::size_t s = 0; s < ja["stages"].size(); ++s) {
+        EXPECT_EQ(ja["stages"][s]["in"], jb["stages"][s]["in"]) << s;
+        EXPECT_EQ(ja["stages"][s]["out"], jb["stages"][s]["out"]) << s;
+        EXPECT_EQ(ja["stages"][s]["rejected"], jb["stages"][s]["rejected"]) << s;
+      }
+      continue;
+    }
+    ++compared;
+    EXPECT_FALSE(a.empty()) << name;
+    EXPECT_TRUE(a == b) << name << " differs between 1 and 2 threads";
+  }
+  EXPECT_EQ(compared, 5u);  // returns.pcd, cloud.pcd, elevation.tif, elevation.png, map.bt
+}
+
+TEST(Cli, TheStreamingExampleRunsTheSampleLineByLine) {
+  // tools/stream_example: the sample passes pushed line by line through pipelines/streaming.yaml;
+  // it must finish every line and keep what the batch run of the same pipeline keeps.
+  const std::string dir = test::fresh_dir();
+  const std::string yaml = std::string(PCDP_SOURCE_DIR) + "/pipelines/streaming.yaml";
+  const auto batch = run_cli({"run", yaml, "--output-dir", dir + "/batch"});
+  ASSERT_EQ(batch.exit_code, 0) << batch.err;
+  const auto report = nlohmann::json::parse(test::read_text(dir + "/batch/report.json"));
+  const std::string cmd = std::string(PCDP_STREAM_EXAMPLE_PATH) + " " + yaml + " 2>&1";
+  std::FILE* p = ::popen(cmd.c_str(), "r");
+  ASSERT_NE(p, nullptr);
+  std::string out;
+  char buf[512];
+  while (std::fgets(buf, sizeof buf, p)) out += buf;
+  ASSERT_EQ(::pclose(p), 0) << out;
+  const std::string expect = "stream: 300 lines, " + std::to_string(report["input_returns"].get<std::uint64_t>()) +
+                             " returns, " + std::to_string(report["kept"].get<std::uint64_t>()) + " kept";
+  EXPECT_NE(out.find(expect), std::string::npos) << out << "\nexpected: " << expect;
+  EXPECT_NE(out.find("p99"), std::string::npos) << out;
+}

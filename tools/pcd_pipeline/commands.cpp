@@ -2,12 +2,14 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <sstream>
+#include <thread>
 
 #include "pcdp/config.hpp"
 #include "pcdp/errors.hpp"
@@ -62,11 +64,13 @@ int cmd_run(const RunArgs& a) {
       std::fflush(stderr);
     };
   }
-  const RunSummary s = p.run(progress);
+  unsigned threads = a.threads ? a.threads : std::max(1u, std::thread::hardware_concurrency());
+  threads = static_cast<unsigned>(std::min<std::size_t>(threads, std::max<std::size_t>(1, p.config().scans.size())));
+  const RunSummary s = p.run(progress, threads);
   if (tty) std::fprintf(stderr, "\r\033[K");
   if (!a.quiet) {
     std::cout << "pcd_pipeline: " << s.passes.size() << " pass(es), " << s.input_returns << " returns, "
-              << s.labels[0] << " kept, in " << s.seconds << " s\n";
+              << s.labels[0] << " kept, in " << s.seconds << " s on " << s.threads << " thread(s)\n";
     std::cout << "labels:";
     for (std::size_t l = 0; l < kLabelCount; ++l)
       if (s.labels[l]) std::cout << " " << label_name(static_cast<Label>(l)) << "=" << s.labels[l];

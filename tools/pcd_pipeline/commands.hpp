@@ -17,6 +17,7 @@ struct RunArgs {
   std::vector<std::string> sets;
   std::string output_dir;
   bool quiet = false;
+  unsigned threads = 0;  ///< 0: one per core
 };
 
 int cmd_run(const RunArgs& a);

@@ -24,6 +24,9 @@ int main(int argc, char** argv) {
   };
   CLI::App* run = app.add_subcommand("run", "run a pipeline: read passes, run the stages, write the outputs");
   add_run_options(run);
+  run->add_option("-j,--threads", run_args.threads,
+                   "worker threads (0: one per core); the outputs are identical whatever the count")
+      ->check(CLI::Range(0, 256));
   CLI::App* validate = app.add_subcommand("validate", "load and check a pipeline; reads no scan");
   add_run_options(validate);
   CLI::App* stages = app.add_subcommand("stages", "list the built-in stages");

@@ -32,7 +32,20 @@ struct OctoMapParams {
 /// A tree with the sensor model of `p`.
 octomap::OcTree make_octree(const OctoMapParams& p);
 
-/// Inserts the kept returns of a registered pass. Returns the number of rays cast.
+/// The cells one pass's rays update: free (traversed) and occupied (end points), occupied winning.
+struct PassRays {
+  octomap::KeySet free_cells, occupied_cells;
+  std::uint64_t rays = 0;
+};
+
+/// Casts the kept returns of a registered pass (the costly part; reads only the tree's key
+/// geometry, so it can run while another thread updates a tree of the same resolution).
+PassRays cast_pass(const octomap::OcTree& tree, const Pass& pass, const OctoMapParams& p);
+
+/// Applies one pass's cells to the tree: free first, then occupied, then the inner nodes.
+void apply_rays(octomap::OcTree& tree, const PassRays& rays);
+
+/// cast_pass + apply_rays. Returns the number of rays cast.
 std::uint64_t insert_pass(octomap::OcTree& tree, const Pass& pass, const OctoMapParams& p);
 
 /// The occupied cells of a tree as finest-resolution keys (pruned leaves expanded to the keys they

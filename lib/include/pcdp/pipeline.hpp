@@ -28,6 +28,7 @@ struct RunSummary {
   std::vector<StageReport> stages;
   std::vector<std::string> warnings;
   double seconds = 0.0;
+  unsigned threads = 1;
   std::string output_dir;
   std::vector<std::string> outputs;  ///< final paths written
 };
@@ -49,8 +50,11 @@ class Pipeline {
 
   const PipelineConfig& config() const { return *config_; }
   /// Streams every pass through the stages, writes returns.pcd, cloud.pcd, the stages' products
-  /// and report.json into output_dir, then renames them into place.
-  RunSummary run(const ProgressFn& progress = {});
+  /// and report.json into output_dir, then renames them into place. With threads > 1, passes are
+  /// processed on that many worker threads (at most threads + 1 passes in memory) and applied in
+  /// pass order: the outputs are identical whatever the thread count (Stage::concurrent/split).
+  /// Progress events come from the calling thread.
+  RunSummary run(const ProgressFn& progress = {}, unsigned threads = 1);
 
  private:
   Pipeline() = default;

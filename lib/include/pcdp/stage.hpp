@@ -41,9 +41,32 @@ class OutputSink {
   virtual std::string staged_path(const std::string& filename) = 0;
 };
 
+/// The result of a stage's per-pass computation (Stage::compute), applied later in pass order.
+struct StageWork {
+  virtual ~StageWork() = default;
+};
+
+/// How the pipeline may run a stage on several passes at once (threads, identical results):
+///  - concurrent(): process() reads no state that changes between passes, so it may run on
+///    different passes at the same time (register, the reject stages, check_consistency after its
+///    prepass);
+///  - split(): the stage accumulates across passes (fusion) but separates the costly per-pass
+///    part, compute() (const, any thread, reads the pass as it is at the stage's place in the
+///    chain), from apply(), which updates the stage's state and runs in pass order;
+///  - neither: process() runs in pass order on one thread.
 class Stage {
  public:
   virtual ~Stage() = default;
+  virtual bool concurrent() const { return false; }
+  /// For the line streaming API (stream.hpp): how many scan lines before and after a line this
+  /// stage's result for it depends on; -1 if it cannot run on a window of lines (it needs every
+  /// line of the pass, or every pass).
+  virtual int stream_reach() const { return -1; }
+  virtual bool split() const { return false; }
+  /// split() stages: the per-pass part; must not change the stage.
+  virtual std::unique_ptr<StageWork> compute(const Pass& /*pass*/, StageReport& /*report*/) const { return nullptr; }
+  /// split() stages: folds one pass's work into the stage's state, in pass order.
+  virtual void apply(std::unique_ptr<StageWork> /*work*/, StageReport& /*report*/) {}
   /// Processes one pass in place: may set labels, points, ranges. Must not change which
   /// returns exist (every input return is kept exactly once, DESIGN.md).
   virtual void process(Pass& pass, StageReport& report) = 0;
@@ -54,6 +77,11 @@ class Stage {
   /// to prepass(), then runs the whole chain as usual.
   virtual bool wants_prepass() const { return false; }
   virtual void prepass(const Pass& /*pass*/) {}
+  /// Prepass stages may split it like split(): prepass_compute (const, any thread) and
+  /// prepass_apply (in pass order). prepass_split() says they do.
+  virtual bool prepass_split() const { return false; }
+  virtual std::unique_ptr<StageWork> prepass_compute(const Pass& /*pass*/) const { return nullptr; }
+  virtual void prepass_apply(std::unique_ptr<StageWork> /*work*/) {}
 };
 
 /// Shared, read-only resources of a run, loaded in the prepare phase.

@@ -72,6 +72,8 @@ class PoseTrack {
   PoseTrack() = default;
   /// Samples must have strictly increasing stamps (checked by the reader; asserted here).
   explicit PoseTrack(std::vector<PoseSample> samples);
+  /// Adds a sample after the last one (live poses); throws std::invalid_argument if its stamp is not later.
+  void append(PoseSample s);
 
   bool empty() const { return samples_.empty(); }
   std::size_t size() const { return samples_.size(); }

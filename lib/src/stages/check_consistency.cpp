@@ -1,5 +1,7 @@
 #include "pcdp/stages/check_consistency.hpp"
 
+#include <unordered_set>
+
 #include <cmath>
 
 #include "pcdp/pass.hpp"
@@ -22,17 +24,28 @@ std::uint64_t ConsistencyEvidence::key(std::int64_t x, std::int64_t y, std::int6
   return (u(x) << 42) | (u(y) << 21) | u(z);
 }
 
-void ConsistencyEvidence::add_pass(const Pass& pass) {
-  const std::uint64_t bit = 1ull << (pass.index % 64);
+ConsistencyEvidence::PassVoxels ConsistencyEvidence::collect(const Pass& pass) const {
+  PassVoxels out;
+  out.bit = 1ull << (pass.index % 64);
   const double res = p_.resolution;
+  // Neighbouring rays cross the same voxels: a small direct-mapped cache of recent keys drops most
+  // repeats before the set does the rest.
+  constexpr std::size_t kCache = 4096;
+  std::vector<std::uint64_t> cache(kCache, ~0ull);
+  std::unordered_set<std::uint64_t> free_set, hit_set;
+  const auto add_free = [&](std::uint64_t k) {
+    std::uint64_t& c = cache[(k * 0x9E3779B97F4A7C15ull) >> 52];
+    if (c == k) return;
+    c = k;
+    free_set.insert(k);
+  };
   for (std::size_t i = 0; i < pass.size(); ++i) {
     if (!pass.is_kept(i) || !std::isfinite(pass.x[i]) || !std::isfinite(pass.ox[i])) continue;
     const double o[3] = {pass.ox[i], pass.oy[i], pass.oz[i]}, e[3] = {pass.x[i], pass.y[i], pass.z[i]};
     double d[3] = {e[0] - o[0], e[1] - o[1], e[2] - o[2]};
     const double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    voxels_[key(static_cast<std::int64_t>(std::floor(e[0] / res)), static_cast<std::int64_t>(std::floor(e[1] / res)),
-                static_cast<std::int64_t>(std::floor(e[2] / res)))]
-        .hit |= bit;
+    hit_set.insert(key(static_cast<std::int64_t>(std::floor(e[0] / res)), static_cast<std::int64_t>(std::floor(e[1] / res)),
+                       static_cast<std::int64_t>(std::floor(e[2] / res))));
     if (len <= p_.margin || len > p_.max_range) continue;
     for (double& c : d) c /= len;
     // 3-D DDA (Amanatides & Woo) from the origin to len - margin.
@@ -48,14 +61,25 @@ void ConsistencyEvidence::add_pass(const Pass& pass) {
     const double tend = len - p_.margin;
     double t = 0.0;
     while (t < tend) {
-      voxels_[key(v[0], v[1], v[2])].free |= bit;
+      add_free(key(v[0], v[1], v[2]));
       const int a = tmax[0] < tmax[1] ? (tmax[0] < tmax[2] ? 0 : 2) : (tmax[1] < tmax[2] ? 1 : 2);
       t = tmax[a];
       tmax[a] += tdelta[a];
       v[a] += step[a];
     }
   }
+  out.hit.assign(hit_set.begin(), hit_set.end());
+  out.free.assign(free_set.begin(), free_set.end());
+  return out;
 }
+
+void ConsistencyEvidence::merge(const PassVoxels& v) {
+  voxels_.reserve(voxels_.size() + v.free.size() / 2);
+  for (const std::uint64_t k : v.hit) voxels_[k].hit |= v.bit;
+  for (const std::uint64_t k : v.free) voxels_[k].free |= v.bit;
+}
+
+void ConsistencyEvidence::add_pass(const Pass& pass) { merge(collect(pass)); }
 
 std::size_t ConsistencyEvidence::label(Pass& pass) const {
   const std::uint64_t bit = 1ull << (pass.index % 64);
@@ -90,11 +114,22 @@ class CheckConsistencyStage final : public Stage {
  public:
   explicit CheckConsistencyStage(ConsistencyParams p) : evidence_(p) {}
   bool wants_prepass() const override { return true; }
+  bool concurrent() const override { return true; }  // label() reads the evidence, complete after the prepass
   void prepass(const Pass& pass) override { evidence_.add_pass(pass); }
+  bool prepass_split() const override { return true; }
+  std::unique_ptr<StageWork> prepass_compute(const Pass& pass) const override {
+    auto w = std::make_unique<Work>();
+    w->voxels = evidence_.collect(pass);
+    return w;
+  }
+  void prepass_apply(std::unique_ptr<StageWork> w) override { evidence_.merge(static_cast<Work&>(*w).voxels); }
   void process(Pass& pass, StageReport&) override { evidence_.label(pass); }
 
  private:
   ConsistencyEvidence evidence_;
+  struct Work final : StageWork {
+    ConsistencyEvidence::PassVoxels voxels;
+  };
 };
 }  // namespace
 

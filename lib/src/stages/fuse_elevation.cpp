@@ -20,15 +20,24 @@ const OptionSchema& fuse_elevation_schema() {
   return s;
 }
 
-void fuse_pass(ElevationGrid& grid, const Pass& pass, const FuseElevationParams& p, double fallback_var) {
+namespace {
+/// The points of a pass that go into the grid, with their vertical variance.
+template <class F>
+void for_each_point(const Pass& pass, const FuseElevationParams& p, double fallback_var, F&& f) {
   const bool cov = pass.cov.size() == 6 * pass.size();
   for (std::size_t i = 0; i < pass.size(); ++i) {
     if (!pass.is_kept(i) || !std::isfinite(pass.z[i])) continue;
     if (p.has_extent && (pass.x[i] < p.xmin || pass.x[i] >= p.xmax || pass.y[i] < p.ymin || pass.y[i] >= p.ymax)) continue;
     double var = cov ? static_cast<double>(pass.cov[6 * i + 5]) : fallback_var;
     if (!(var > 1e-12)) var = fallback_var;
-    grid.add(pass.x[i], pass.y[i], pass.z[i], var, static_cast<std::int32_t>(pass.index));
+    f(pass.x[i], pass.y[i], pass.z[i], var, static_cast<std::int32_t>(pass.index));
   }
+}
+}  // namespace
+
+void fuse_pass(ElevationGrid& grid, const Pass& pass, const FuseElevationParams& p, double fallback_var) {
+  for_each_point(pass, p, fallback_var,
+                 [&](double x, double y, double z, double var, std::int32_t k) { grid.add(x, y, z, var, k); });
 }
 
 namespace {
@@ -36,6 +45,18 @@ class FuseElevationStage final : public Stage {
  public:
   FuseElevationStage(FuseElevationParams p, double fallback_var)
       : params_(p), fallback_var_(fallback_var), grid_(p.resolution, p.band, p.min_support) {}
+  bool split() const override { return true; }
+  // The points this pass adds (copied, since later stages may still change the pass).
+  std::unique_ptr<StageWork> compute(const Pass& pass, StageReport&) const override {
+    auto w = std::make_unique<Work>();
+    for_each_point(pass, params_, fallback_var_, [&](double x, double y, double z, double var, std::int32_t k) {
+      w->points.push_back({x, y, z, var, k});
+    });
+    return w;
+  }
+  void apply(std::unique_ptr<StageWork> work, StageReport&) override {
+    for (const auto& p : static_cast<Work&>(*work).points) grid_.add(p.x, p.y, p.z, p.var, p.pass);
+  }
   void process(Pass& pass, StageReport&) override { fuse_pass(grid_, pass, params_, fallback_var_); }
   void finish(OutputSink& sink, StageReport& report) override {
     io::write_elevation_geotiff(grid_, sink.staged_path("elevation.tif"));
@@ -52,6 +73,13 @@ class FuseElevationStage final : public Stage {
   FuseElevationParams params_;
   double fallback_var_;
   ElevationGrid grid_;
+  struct Work final : StageWork {
+    struct P {
+      double x, y, z, var;
+      std::int32_t pass;
+    };
+    std::vector<P> points;
+  };
 };
 }  // namespace
 

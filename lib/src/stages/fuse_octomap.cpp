@@ -29,10 +29,17 @@ const OptionSchema& fuse_octomap_schema() {
 namespace {
 class FuseOctoMapStage final : public Stage {
  public:
-  FuseOctoMapStage(OctoMapParams p, bool write_ot) : params_(p), write_ot_(write_ot), tree_(make_octree(p)) {}
-  void process(Pass& pass, StageReport& report) override {
-    report.metrics["rays"] += static_cast<double>(insert_pass(tree_, pass, params_));
+  FuseOctoMapStage(OctoMapParams p, bool write_ot)
+      : params_(p), write_ot_(write_ot), tree_(make_octree(p)), caster_(make_octree(p)) {}
+  bool split() const override { return true; }
+  std::unique_ptr<StageWork> compute(const Pass& pass, StageReport& report) const override {
+    auto w = std::make_unique<Work>();
+    w->rays = cast_pass(caster_, pass, params_);
+    report.metrics["rays"] += static_cast<double>(w->rays.rays);
+    return w;
   }
+  void apply(std::unique_ptr<StageWork> work, StageReport&) override { apply_rays(tree_, static_cast<Work&>(*work).rays); }
+  void process(Pass& pass, StageReport& report) override { apply(compute(pass, report), report); }
   void finish(OutputSink& sink, StageReport& report) override {
     tree_.updateInnerOccupancy();
     // liboctomap (as Debian builds it) logs " done." to stderr while writing binary trees; a
@@ -67,6 +74,12 @@ class FuseOctoMapStage final : public Stage {
   OctoMapParams params_;
   bool write_ot_;
   octomap::OcTree tree_;
+  // An empty tree of the same resolution: only its key geometry is used, by cast_pass on any
+  // thread, while tree_ is updated in pass order.
+  octomap::OcTree caster_;
+  struct Work final : StageWork {
+    PassRays rays;
+  };
 };
 }  // namespace
 

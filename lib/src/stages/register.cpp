@@ -134,6 +134,8 @@ class RegisterStage final : public Stage {
     const PipelineConfig& cfg = *ctx.config;
     T_V_N_ = make_transform(cfg.mount.translation, cfg.mount.rpy, cfg.rpy_order);
   }
+  bool concurrent() const override { return true; }
+  int stream_reach() const override { return 1; }  // the previous line's encoder reading
   void process(Pass& pass, StageReport& report) override {
     register_pass(pass, params_, ctx_.config->sensor, T_V_N_, ctx_.poses.get(), ctx_.config->pose_sigma,
                   ctx_.config->rpy_order);

@@ -288,6 +288,8 @@ namespace {
 class RejectMixedPixelsStage final : public Stage {
  public:
   RejectMixedPixelsStage(MixedPixelParams p, const RunContext& ctx) : params_(p), sensor_(ctx.config->sensor) {}
+  bool concurrent() const override { return true; }
+  int stream_reach() const override { return params_.across_lines ? params_.window + 1 : 0; }
   void process(Pass& pass, StageReport&) override { reject_mixed_pixels(pass, params_, sensor_); }
 
  private:

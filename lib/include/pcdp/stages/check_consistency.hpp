@@ -11,6 +11,7 @@
 
 #include <cstdint>
 #include <unordered_map>
+#include <vector>
 
 #include "pcdp/stage.hpp"
 
@@ -32,6 +33,16 @@ const OptionSchema& check_consistency_schema();
 class ConsistencyEvidence {
  public:
   explicit ConsistencyEvidence(const ConsistencyParams& p) : p_(p) {}
+  /// The voxels one pass saw: its end points (hit) and the voxels its rays crossed (free).
+  struct PassVoxels {
+    std::uint64_t bit = 0;
+    std::vector<std::uint64_t> hit, free;
+  };
+  /// The evidence of one pass (const: any thread, several passes at once).
+  PassVoxels collect(const Pass& pass) const;
+  /// Adds one pass's evidence (the bits of different passes commute: any order gives one result).
+  void merge(const PassVoxels& v);
+  /// collect + merge.
   void add_pass(const Pass& pass);
   /// Labels the contradicted kept returns of `pass`; returns how many.
   std::size_t label(Pass& pass) const;
