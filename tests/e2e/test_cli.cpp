@@ -852,3 +852,20 @@ TEST(Cli, TheStreamingExampleRunsTheSampleLineByLine) {
   EXPECT_NE(out.find(expect), std::string::npos) << out << "\nexpected: " << expect;
   EXPECT_NE(out.find("p99"), std::string::npos) << out;
 }
+
+TEST(Cli, ImportOfCartesianScansNamesBadOptionsAndFiles) {
+  const std::string dir = test::fresh_dir();
+  const std::string table = std::string(PCDP_SHARED_DIR) + "/datasets/pcl_table_scene_lms400/table_scene_lms400_downsampled.pcd";
+  auto r = run_cli({"import", "cloud", table, "--viewpoint", "1,2", "--output-dir", dir + "/a"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("import cloud: --viewpoint '1,2' must be x,y,z in metres"), std::string::npos) << r.err;
+  r = run_cli({"import", "octomap", dir + "/missing.dat", "--output-dir", dir + "/b"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_NE(r.err.find("missing.dat: cannot open the scan file"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/b/pass_000.pcd"));
+  r = run_cli({"import", "cloud", table, "--output-dir", dir + "/c"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("imported 1 scan(s), 41049 returns"), std::string::npos) << r.out;
+  EXPECT_TRUE(std::filesystem::exists(dir + "/c/pass_000.pcd"));
+  EXPECT_TRUE(std::filesystem::exists(dir + "/c/poses.csv"));
+}

@@ -63,3 +63,35 @@ TEST(PclInterop, PclReadsOurWriterOutput) {
   ASSERT_EQ(cloud.size(), 10u);
   EXPECT_FLOAT_EQ(cloud[7].y, 14.0f);
 }
+
+#include <pcl/io/ply_io.h>
+
+#include "pcdp/io/import_scans.hpp"
+
+TEST(PclInterop, OurPlyReaderReadsWhatPclWrites) {
+  pcl::PointCloud<pcl::PointXYZI> cloud;
+  for (int i = 0; i < 300; ++i) {
+    pcl::PointXYZI p;
+    p.x = 0.25f * static_cast<float>(i);
+    p.y = std::cos(static_cast<float>(i));
+    p.z = -static_cast<float>(i) / 3.0f;
+    p.intensity = static_cast<float>(i % 23);
+    cloud.push_back(p);
+  }
+  const std::string dir = test::fresh_dir();
+  for (const bool binary : {false, true}) {
+    const std::string path = dir + (binary ? "/b.ply" : "/a.ply");
+    pcl::PLYWriter w;
+    ASSERT_EQ(w.write(path, cloud, binary, false), 0);
+    std::vector<Eigen::Vector3d> xyz;
+    std::vector<float> in;
+    io::read_ply(path, xyz, in);
+    ASSERT_EQ(xyz.size(), 300u) << binary;
+    ASSERT_EQ(in.size(), 300u) << binary;
+    for (std::size_t i = 0; i < 300; ++i) {
+      EXPECT_NEAR(xyz[i].x(), cloud[i].x, 1e-5 * std::max(1.0f, std::fabs(cloud[i].x))) << binary;  // ASCII: 6 digits
+      EXPECT_NEAR(xyz[i].z(), cloud[i].z, 1e-5 * std::max(1.0f, std::fabs(cloud[i].z))) << binary;
+      EXPECT_EQ(in[i], cloud[i].intensity) << binary;
+    }
+  }
+}

@@ -23,6 +23,7 @@
 #include "pcdp/io/geotiff.hpp"
 #include "pcdp/io/import_3dtk.hpp"
 #include "pcdp/io/import_rplidar.hpp"
+#include "pcdp/io/import_scans.hpp"
 #include "pcdp/nod_plan.hpp"
 #include "pcdp/io/svg_plot.hpp"
 #include "pcdp/occlusion_model.hpp"
@@ -464,7 +465,47 @@ std::size_t write_passes(const std::vector<Pass>& passes, const std::string& out
 }  // namespace
 
 int cmd_import(const std::string& format, const std::vector<std::string>& inputs, const std::string& out_dir,
-               const std::string& poses) {
+               const std::string& poses, const std::string& viewpoint, double max_residual, const std::string& nod_origin) {
+  if (format == "octomap" || format == "cloud") {
+    const auto xyz = [&](const std::string& opt, const std::string& text) {
+      Eigen::Vector3d v;
+      char c1 = 0, c2 = 0;
+      std::istringstream is(text);
+      if (!(is >> v.x() >> c1 >> v.y() >> c2 >> v.z()) || c1 != ',' || c2 != ',' || !v.allFinite() || !(is >> std::ws).eof())
+        throw ConfigError("import " + format + ": " + opt + " '" + text + "' must be x,y,z in metres");
+      return v;
+    };
+    Eigen::Vector3d vp;
+    const bool have_vp = !viewpoint.empty();
+    if (have_vp) {
+      if (format != "cloud") throw ConfigError("import octomap: --viewpoint is for clouds (scan poses come from the file)");
+      vp = xyz("--viewpoint", viewpoint);
+    }
+    io::ImportOptions opt;
+    opt.max_residual = max_residual;
+    opt.auto_nod_origin = nod_origin == "auto";
+    if (!nod_origin.empty() && !opt.auto_nod_origin) opt.nod_origin = xyz("--nod-origin", nod_origin);
+    const io::ImportedScans r = format == "octomap" ? io::import_octomap(inputs, opt)
+                                                    : io::import_cloud(inputs, have_vp ? &vp : nullptr, opt);
+    const std::size_t n = write_passes(r.passes, out_dir);
+    sim::write_pose_csv(r.poses, RpyOrder::kXyz, (std::filesystem::path(out_dir) / "poses.csv").string());
+    std::printf("imported %zu scan(s), %zu returns -> %s (pass_*.pcd, poses.csv; rpy_order xyz, mount identity, "
+                "skew_correction: false)\n",
+                r.passes.size(), n, out_dir.c_str());
+    for (std::size_t k = 0; k < r.passes.size(); ++k) {
+      const io::LineRecovery& rec = r.recovery[k];
+      std::printf("  %s: nod origin %.3f,%.3f,%.3f; %zu scan line(s)%s, rebuild error median %.2g m, largest %.2g m",
+                  r.passes[k].source.c_str(), rec.nod_origin.x(), rec.nod_origin.y(), rec.nod_origin.z(), rec.lines,
+                  rec.organized ? " on one beam grid (organized)" : "", rec.median_residual, rec.max_residual);
+      if (rec.loose_points)
+        std::printf("; %zu point(s) of %zu line(s) did not fit their line within %.3g m and were imported as lines of "
+                    "their own%s",
+                    rec.loose_points, rec.split_lines, max_residual,
+                    rec.nod_origin.isZero() && nod_origin.empty() ? " (is the scan's origin on the nod axis? try --nod-origin auto)" : "");
+      std::printf("\n");
+    }
+    return 0;
+  }
   if (format == "rplidar") {
     if (inputs.size() != 1)
       throw ConfigError("import rplidar: expected one folder (with scans.csv, beams.csv, servo.csv), got " +
@@ -477,8 +518,8 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
     return 0;
   }
   if (format != "3dtk")
-    throw ConfigError("import: unknown format '" + format + "'" + did_you_mean(format, {"3dtk", "rplidar"}) +
-                      "; formats: 3dtk, rplidar");
+    throw ConfigError("import: unknown format '" + format + "'" + did_you_mean(format, {"3dtk", "rplidar", "octomap", "cloud"}) +
+                      "; formats: 3dtk, rplidar, octomap, cloud");
   if (poses != "odometry" && poses != "frames")
     throw ConfigError("import 3dtk: --poses must be odometry or frames, not '" + poses + "'");
   const io::Imported3dtk r = io::import_3dtk(inputs, poses == "frames");

@@ -44,7 +44,8 @@ int cmd_error_budget(const RunArgs& a, const std::string& svg, const std::string
 int cmd_merge(const std::vector<std::string>& inputs, const std::string& output, const std::string& png);
 int cmd_docs();
 int cmd_import(const std::string& format, const std::vector<std::string>& inputs, const std::string& out_dir,
-               const std::string& poses);
+               const std::string& poses, const std::string& viewpoint = "", double max_residual = 0.02,
+               const std::string& nod_origin = "");
 int cmd_simulate(const std::string& scene, const std::string& output_dir, bool quiet);
 
 }  // namespace pcdp::cli
