@@ -15,6 +15,7 @@ const OptionSchema& fuse_elevation_schema() {
       opt_double("band", 0.05, 0.001, 100.0, "m", "height band of the top-surface gate (points more than one band below the top band are not fused)"),
       opt_int("min_support", 2, 1.0, 1000.0, "points", "the surface is the highest height band with at least this many points"),
       opt_string("extent", "", "xmin,ymin,xmax,ymax in map metres; empty: the grid grows with the data"),
+      opt_double("z_max", 1e9, -1e9, 1e9, "m", "points higher than this (map z) are not fused: ceilings, overhangs, tree crowns"),
       opt_bool("png", true, "also draw elevation.png"),
   };
   return s;
@@ -28,6 +29,7 @@ void for_each_point(const Pass& pass, const FuseElevationParams& p, double fallb
   for (std::size_t i = 0; i < pass.size(); ++i) {
     if (!pass.is_kept(i) || !std::isfinite(pass.z[i])) continue;
     if (p.has_extent && (pass.x[i] < p.xmin || pass.x[i] >= p.xmax || pass.y[i] < p.ymin || pass.y[i] >= p.ymax)) continue;
+    if (pass.z[i] > p.z_max) continue;
     double var = cov ? static_cast<double>(pass.cov[6 * i + 5]) : fallback_var;
     if (!(var > 1e-12)) var = fallback_var;
     f(pass.x[i], pass.y[i], pass.z[i], var, static_cast<std::int32_t>(pass.index));
@@ -93,6 +95,7 @@ StageInfo fuse_elevation_stage_info() {
             p.resolution = o.get_double("resolution");
             p.band = o.get_double("band");
             p.png = o.get_bool("png");
+            p.z_max = o.get_double("z_max");
             p.min_support = static_cast<std::uint32_t>(o.get_int("min_support"));
             const std::string ext = o.get_string("extent");
             if (!ext.empty()) {

@@ -17,6 +17,7 @@ struct FuseElevationParams {
   std::uint32_t min_support = 2;  ///< points in the highest band that make it the surface
   bool has_extent = false;  ///< otherwise the grid grows with the data
   double xmin = 0, ymin = 0, xmax = 0, ymax = 0;
+  double z_max = 1e9;       ///< m, points above are not fused
   bool png = true;
 };
 
