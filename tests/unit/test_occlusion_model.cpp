@@ -1,6 +1,8 @@
 // Property tests of the amplitude model (Liu et al. 2005), and its agreement with the simulator.
 #include <gtest/gtest.h>
 
+#include <random>
+
 #include <cmath>
 #include <iostream>
 
@@ -139,4 +141,29 @@ TEST(OcclusionModel, AgreesWithTheRayTracedSimulator) {
     worst = std::max(worst, std::fabs(b.amplitude - amplitude_at(e, x)));
   }
   EXPECT_LT(worst, 3.0);  // amplitude units, of 115: sub-ray sampling and small-angle geometry
+}
+
+TEST(OcclusionModel, ProfileMinimumMatchesADenseScanOnRandomEdges) {
+  // profile_minimum searches a coarse grid on [X1, X2] and refines; it must never miss the dip a
+  // dense scan (20000 cells) of [0, X2] finds (the reject stage's decision rests on it).
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int k = 0; k < 2000; ++k) {
+    EdgeParams e;
+    e.d1 = 0.5 + 25.0 * u(rng);
+    e.d2 = e.d1 + 0.05 + 10.0 * u(rng);
+    e.p1 = 5.0 + 300.0 * u(rng);
+    e.p2 = 5.0 + 300.0 * u(rng);
+    e.alpha = 0.001 + 0.012 * u(rng);
+    e.separation = 0.12 * u(rng);
+    e.theta = -3.14159 + 6.28318 * u(rng);
+    const double hi = std::max(x2(e), 1e-12);
+    double dense = amplitude_at(e, 0.0);
+    for (int i = 1; i <= 2000; ++i) dense = std::min(dense, amplitude_at(e, hi * i / 4000));
+    const ProfileMinimum m = profile_minimum(e);
+    EXPECT_LE(m.amplitude, dense + 1e-6 * std::max(1.0, dense)) << k;
+    EXPECT_NEAR(m.amplitude, amplitude_at(e, m.x), 1e-12) << k;
+    EXPECT_GE(m.x, 0.0);
+    EXPECT_LE(m.x, hi * (1 + 1e-12));
+  }
 }

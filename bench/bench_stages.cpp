@@ -1,0 +1,115 @@
+// Per-stage speed (Google Benchmark, items_per_second = returns per second) on one pass of the
+// benchmark setting A (241 beams x 75 lines, the sample's sensor), each stage on a copy of the pass
+// as the stage before it left it. ->Threads(2) runs two copies at once: the per-core rate should
+// hold if the stage scales (it shares nothing).
+//   ./build/bench/pcdp_stage_bench --benchmark_min_time=0.5
+#include <benchmark/benchmark.h>
+
+#include "pcdp/elevation.hpp"
+#include "pcdp/octomap_fusion.hpp"
+#include "pcdp/pass.hpp"
+#include "pcdp/sim/bench_scenes.hpp"
+#include "pcdp/stages/check_consistency.hpp"
+#include "pcdp/stages/fuse_elevation.hpp"
+#include "pcdp/stages/register.hpp"
+#include "pcdp/stages/reject_mixed_pixels.hpp"
+#include "pcdp/stages/reject_occlusion.hpp"
+
+using namespace pcdp;
+
+namespace {
+struct Data {
+  bench::Setting setting = bench::make_setting('A', 1);
+  PoseTrack poses;
+  Eigen::Isometry3d T_V_N;
+  Pass raw, registered, occluded, mixed;
+  Data() {
+    setting.sim.passes = 1;
+    const auto r = sim::simulate(setting.sim);
+    poses = PoseTrack(r.poses);
+    T_V_N = make_transform(setting.sim.mount_translation, setting.sim.mount_rpy, setting.sim.rpy_order);
+    raw = r.passes[0].pass;
+    registered = raw;
+    register_pass(registered, RegisterParams{}, setting.sensor, T_V_N, &poses);
+    occluded = registered;
+    reject_occlusion(occluded, OcclusionParams{}, setting.sensor);
+    mixed = occluded;
+    reject_mixed_pixels(mixed, MixedPixelParams{}, setting.sensor);
+  }
+};
+const Data& data() {
+  static const Data d;
+  return d;
+}
+
+template <class F>
+void per_pass(benchmark::State& state, const Pass& input, F&& f) {
+  for (auto _ : state) {
+    state.PauseTiming();
+    Pass p = input;
+    state.ResumeTiming();
+    f(p);
+    benchmark::ClobberMemory();
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * input.size()));
+}
+}  // namespace
+
+static void BM_Register(benchmark::State& state) {
+  const Data& d = data();
+  RegisterParams rp;
+  rp.covariance = state.range(0) != 0;
+  per_pass(state, d.raw, [&](Pass& p) { register_pass(p, rp, d.setting.sensor, d.T_V_N, &d.poses); });
+}
+BENCHMARK(BM_Register)->ArgName("covariance")->Arg(1)->Arg(0)->Threads(1)->Threads(2)->UseRealTime();
+
+static void BM_RejectOcclusion(benchmark::State& state) {
+  const Data& d = data();
+  per_pass(state, d.registered, [&](Pass& p) { reject_occlusion(p, OcclusionParams{}, d.setting.sensor); });
+}
+BENCHMARK(BM_RejectOcclusion)->Threads(1)->Threads(2)->UseRealTime();
+
+static void BM_RejectMixedPixels(benchmark::State& state) {
+  const Data& d = data();
+  per_pass(state, d.occluded, [&](Pass& p) { reject_mixed_pixels(p, MixedPixelParams{}, d.setting.sensor); });
+}
+BENCHMARK(BM_RejectMixedPixels)->Threads(1)->Threads(2)->UseRealTime();
+
+static void BM_CheckConsistencyCollect(benchmark::State& state) {
+  const Data& d = data();
+  const ConsistencyEvidence ev{ConsistencyParams{}};
+  per_pass(state, d.mixed, [&](Pass& p) { benchmark::DoNotOptimize(ev.collect(p)); });
+}
+BENCHMARK(BM_CheckConsistencyCollect)->Threads(1)->Threads(2)->UseRealTime();
+
+static void BM_FuseElevation(benchmark::State& state) {
+  const Data& d = data();
+  FuseElevationParams fp;
+  per_pass(state, d.mixed, [&](Pass& p) {
+    ElevationGrid g(fp.resolution, fp.band, fp.min_support);
+    fuse_pass(g, p, fp, 1e-4);
+    benchmark::DoNotOptimize(g);
+  });
+}
+BENCHMARK(BM_FuseElevation)->Threads(1)->Threads(2)->UseRealTime();
+
+static void BM_OctoMapCast(benchmark::State& state) {
+  const Data& d = data();
+  const OctoMapParams op;
+  const octomap::OcTree tree = make_octree(op);
+  per_pass(state, d.mixed, [&](Pass& p) { benchmark::DoNotOptimize(cast_pass(tree, p, op)); });
+}
+BENCHMARK(BM_OctoMapCast)->Threads(1)->Threads(2)->UseRealTime();
+
+static void BM_OctoMapApply(benchmark::State& state) {
+  const Data& d = data();
+  const OctoMapParams op;
+  const PassRays rays = cast_pass(make_octree(op), d.mixed, op);
+  for (auto _ : state) {
+    octomap::OcTree tree = make_octree(op);
+    apply_rays(tree, rays);
+    benchmark::DoNotOptimize(tree.size());
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * d.mixed.size()));
+}
+BENCHMARK(BM_OctoMapApply)->UseRealTime();
