@@ -127,30 +127,40 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
     struct Pre {
       Pass pass;
       std::unique_ptr<StageWork> work;
+      double seconds;
     };
     detail::ordered_parallel<Pre>(
         np, sum.threads, window,
         [&](std::size_t k) {
-          Pre r{read_pass(cfg.scans[k], k), nullptr};
+          Pre r{read_pass(cfg.scans[k], k), nullptr, 0.0};
           StageReport scratch;
           for (std::size_t e = 0; e < par; ++e)
             if (stages_[e]->concurrent()) stages_[e]->process(r.pass, scratch);
           if (early) {
+            const auto t0 = std::chrono::steady_clock::now();
             r.work = stages_[s]->prepass_compute(r.pass);
+            r.seconds = seconds_since(t0);
             r.pass = Pass{};  // only the evidence travels on
           }
           return r;
         },
         [&](std::size_t k, Pre&& r) {
           if (progress) progress({k, np, cfg.scans[k], "prepass " + cfg.stages[s].name});
+          StageReport& rep = sum.stages[s];
+          const auto t0 = std::chrono::steady_clock::now();
           if (early) {
             stages_[s]->prepass_apply(std::move(r.work));
-            return;
+          } else {
+            StageReport scratch;
+            for (std::size_t e = par; e < s; ++e)
+              if (!stages_[e]->split()) stages_[e]->process(r.pass, scratch);
+            stages_[s]->prepass(r.pass);
           }
-          StageReport scratch;
-          for (std::size_t e = par; e < s; ++e)
-            if (!stages_[e]->split()) stages_[e]->process(r.pass, scratch);
-          stages_[s]->prepass(r.pass);
+          // The stage's own prepass work counts in its time (the stages before it, run again for
+          // the prepass, are not counted anywhere: they are the price of streaming passes).
+          const double dt = r.seconds + seconds_since(t0);
+          rep.seconds += dt;
+          rep.metrics["prepass_seconds"] += dt;
         });
   }
   std::int64_t last_line = -1;
@@ -224,7 +234,9 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
       [&](std::size_t s) {
         const auto t0 = std::chrono::steady_clock::now();
         stages_[s]->finish(sink, sum.stages[s]);
-        sum.stages[s].seconds += seconds_since(t0);
+        const double dt = seconds_since(t0);
+        sum.stages[s].seconds += dt;
+        if (dt > 1e-4) sum.stages[s].metrics["finish_seconds"] += dt;  // products written at the end
         return 0;
       },
       [](std::size_t, int) {});
