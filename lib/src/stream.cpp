@@ -51,13 +51,15 @@ std::vector<Pass> LineStream::push(const ScanLine& l) {
   if (static_cast<std::int64_t>(l.line) <= last_line_)
     throw InputError(where + ": field 'line' must increase (the last was " + std::to_string(last_line_) + ")");
   if (!std::isfinite(l.nod)) throw InputError(where + ": field 'nod' is not finite");
+  double newest = last_stamp_;  // committed only when the whole line is valid: a refused line changes nothing
   for (std::size_t i = 0; i < n; ++i) {
     if (!std::isfinite(l.range[i]) || l.range[i] < 0 || !std::isfinite(l.bearing[i]) || !std::isfinite(l.stamp[i]))
       throw InputError(where + ", return " + std::to_string(i) + ": range must be finite and >= 0, bearing and stamp finite");
-    if (l.stamp[i] <= last_stamp_)
+    if (l.stamp[i] <= newest)
       throw InputError(where + ", return " + std::to_string(i) + ": field 'stamp' must increase along the line and from line to line");
-    last_stamp_ = l.stamp[i];
+    newest = l.stamp[i];
   }
+  last_stamp_ = newest;
   last_line_ = l.line;
   lines_.push_back(l);
   const std::size_t last = first_ + lines_.size() - 1;  // pass-relative index of this line

@@ -201,9 +201,18 @@ TEST(Stream, StagesThatNeedWholePassesAndBadLinesAreRefused) {
               std::string::npos)
         << e.what();
   }
+  ScanLine late = line_of(p, 0);
+  late.stamp.back() = late.stamp.front() - 1.0;  // the last return before the first
+  try {
+    s.push(late);
+    FAIL() << "stamps going back were taken";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("return 240: field 'stamp' must increase"), std::string::npos) << e.what();
+  }
+  s.push(line_of(p, 0));  // the refused lines changed nothing: the good line is taken
   s.push(line_of(p, 1));
   try {
-    s.push(line_of(p, 0)); // goes back in time
+    s.push(line_of(p, 0));  // goes back in time
     FAIL() << "a line out of order was taken";
   } catch (const InputError &e) {
     EXPECT_NE(std::string(e.what()).find("field 'line' must increase"),
