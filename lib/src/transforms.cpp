@@ -92,6 +92,7 @@ PoseTrack::PoseTrack(std::vector<PoseSample> samples) : samples_(std::move(sampl
     assert(samples_[i].stamp > samples_[i - 1].stamp);
   }
   for (auto& s : samples_) s.orientation.normalize();
+  for (std::size_t k = 1; k < samples_.size(); ++k) add_segment(k);
 }
 
 void PoseTrack::append(PoseSample s) {
@@ -100,6 +101,18 @@ void PoseTrack::append(PoseSample s) {
                                 std::to_string(samples_.back().stamp));
   s.orientation.normalize();
   samples_.push_back(std::move(s));
+  if (samples_.size() > 1) add_segment(samples_.size() - 1);
+}
+
+void PoseTrack::add_segment(std::size_t k) {  // the segment from sample k - 1 to sample k
+  Segment g;
+  g.dot = samples_[k - 1].orientation.dot(samples_[k].orientation);
+  const double absd = std::fabs(g.dot);
+  if (absd < 1.0 - Eigen::NumTraits<double>::epsilon()) {
+    g.theta = std::acos(absd);
+    g.sin_theta = std::sin(g.theta);
+  }
+  seg_.push_back(g);
 }
 
 std::size_t PoseTrack::bracket(double stamp, std::size_t hint) const {
@@ -132,9 +145,21 @@ Eigen::Isometry3d PoseTrack::at(double stamp, std::size_t& hint) const {
   const PoseSample& a = samples_[hint];
   const PoseSample& b = samples_[hint + 1];
   const double s = (stamp - a.stamp) / (b.stamp - a.stamp);
-  const PoseSample p = interpolate(a, b, s);
-  T.linear() = p.orientation.toRotationMatrix();
-  T.translation() = p.position;
+  // interpolate(a, b, s) with the segment's angle cached: the same arithmetic as Eigen's slerp
+  // (Quaternion::slerp, Eigen 3.4), so the same result to the bit (tests/unit/test_transforms.cpp).
+  const Segment& g = seg_[hint];
+  double scale0, scale1;
+  if (std::fabs(g.dot) >= 1.0 - Eigen::NumTraits<double>::epsilon()) {
+    scale0 = 1.0 - s;
+    scale1 = s;
+  } else {
+    scale0 = std::sin((1.0 - s) * g.theta) / g.sin_theta;
+    scale1 = std::sin(s * g.theta) / g.sin_theta;
+  }
+  if (g.dot < 0.0) scale1 = -scale1;
+  const Eigen::Quaterniond q(scale0 * a.orientation.coeffs() + scale1 * b.orientation.coeffs());
+  T.linear() = q.toRotationMatrix();
+  T.translation() = a.position + s * (b.position - a.position);
   return T;
 }
 

@@ -44,4 +44,41 @@ Eigen::Matrix3d point_covariance(double r, double nu, double eta, const Eigen::I
   return J * var.asDiagonal() * J.transpose();
 }
 
+Eigen::Matrix3d point_covariance_fast(double r, double cn, double sn, double ce, double se, const Eigen::Matrix3d& R_MV,
+                                      const Eigen::Isometry3d& T_V_N, RpyOrder order, const PointSigmas& s) {
+  const Eigen::Vector3d ex = Eigen::Vector3d::UnitX(), ez = Eigen::Vector3d::UnitZ();
+  // The outer and inner axes in the map frame; the middle one is normal to both.
+  const Eigen::Vector3d outer = order == RpyOrder::kXyz ? ex : ez;
+  const Eigen::Vector3d inner = order == RpyOrder::kXyz ? Eigen::Vector3d(R_MV.col(2)) : Eigen::Vector3d(R_MV.col(0));
+  Eigen::Vector3d middle = order == RpyOrder::kXyz ? inner.cross(outer) : outer.cross(inner);
+  const double nm = middle.norm();
+  if (nm < 1e-6) {  // gimbal lock: the middle axis is undefined; take the angle path
+    const Rpy rpy = matrix_to_rpy(R_MV, order);
+    return point_covariance(r, std::atan2(sn, cn), std::atan2(se, ce), T_V_N, rpy, order, s);
+  }
+  middle /= nm;
+  const Eigen::Vector3d u(cn * ce, sn, cn * se);
+  const Eigen::Matrix3d R_MN = R_MV * T_V_N.linear();
+  const Eigen::Vector3d Rp = R_MV * (T_V_N * (r * u));
+  Eigen::Matrix3d Jm;  // the measurement columns (r, nu, eta)
+  Jm.col(0) = R_MN * u;
+  Jm.col(1) = R_MN * Eigen::Vector3d(-r * sn * ce, r * cn, -r * sn * se);
+  Jm.col(2) = R_MN * Eigen::Vector3d(-r * cn * se, 0.0, r * cn * ce);
+  Eigen::Matrix3d Ja;  // the pose-angle columns, in the order roll, pitch, yaw
+  if (order == RpyOrder::kXyz) {  // R = Rx(roll) Ry(pitch) Rz(yaw)
+    Ja.col(0) = outer.cross(Rp);
+    Ja.col(1) = middle.cross(Rp);
+    Ja.col(2) = inner.cross(Rp);
+  } else {  // R = Rz(yaw) Ry(pitch) Rx(roll)
+    Ja.col(0) = inner.cross(Rp);
+    Ja.col(1) = middle.cross(Rp);
+    Ja.col(2) = outer.cross(Rp);
+  }
+  const Eigen::Vector3d vm(s.range * s.range, s.bearing * s.bearing, s.nod * s.nod);
+  const Eigen::Vector3d va = s.rpy.cwiseProduct(s.rpy);
+  Eigen::Matrix3d C = Jm * vm.asDiagonal() * Jm.transpose() + Ja * va.asDiagonal() * Ja.transpose();
+  C.diagonal() += s.position.cwiseProduct(s.position);  // the position columns are the identity
+  return C;
+}
+
 }  // namespace pcdp

@@ -134,3 +134,39 @@ TEST(Transforms, PoseTrackInterpolatesAndReportsCoverage) {
   EXPECT_NEAR(track.at(10.25, hint).translation().x(), 0.25, 1e-12);
   EXPECT_DOUBLE_EQ(track.gap_at(11.2, hint), 1.0);
 }
+
+TEST(PoseTrack, CachedSlerpIsEigensSlerpToTheBit) {
+  // at() caches each segment's slerp angle; the result must be exactly interpolate()'s (Eigen's
+  // Quaternion::slerp), including nearly equal orientations (lerp branch) and opposite signs.
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<PoseSample> v;
+  for (int k = 0; k < 200; ++k) {
+    PoseSample p;
+    p.stamp = 0.01 * k;
+    p.position = Eigen::Vector3d(u(rng), u(rng), u(rng));
+    const double step = k % 3 == 0 ? 1e-9 : 0.3;  // some segments below Eigen's lerp threshold
+    Eigen::Quaterniond q = k ? v.back().orientation * Eigen::Quaterniond(Eigen::AngleAxisd(step * u(rng), Eigen::Vector3d(u(rng), u(rng), 1).normalized()))
+                             : Eigen::Quaterniond::Identity();
+    if (k % 7 == 0) q.coeffs() = -q.coeffs();  // the same rotation, the other sign
+    p.orientation = q.normalized();
+    v.push_back(p);
+  }
+  const PoseTrack t(v);
+  PoseTrack live;
+  for (const auto& p : v) live.append(p);
+  std::size_t hint = 0, hint2 = 0;
+  for (int i = 0; i < 5000; ++i) {
+    const double stamp = 0.01 * 199 * (i / 5000.0);
+    const Eigen::Isometry3d a = t.at(stamp, hint), b = live.at(stamp, hint2);
+    const std::size_t k = std::min<std::size_t>(static_cast<std::size_t>(stamp / 0.01), 198);
+    const double s = (stamp - v[k].stamp) / (v[k + 1].stamp - v[k].stamp);
+    PoseSample a0 = v[k], b0 = v[k + 1];
+    a0.orientation.normalize();
+    b0.orientation.normalize();
+    const PoseSample e = interpolate(a0, b0, s);
+    EXPECT_TRUE(a.linear() == e.orientation.toRotationMatrix()) << i;
+    EXPECT_TRUE(a.translation() == e.position) << i;
+    EXPECT_TRUE(a.matrix() == b.matrix()) << i;
+  }
+}

@@ -94,6 +94,13 @@ class PoseTrack {
 
  private:
   std::vector<PoseSample> samples_;
+  /// Per segment [k, k+1]: the slerp angle and its sine (Eigen's slerp recomputes both, with an
+  /// acos and a sin, at every call; at() does the same arithmetic with these).
+  struct Segment {
+    double dot = 1.0, theta = 0.0, sin_theta = 0.0;
+  };
+  std::vector<Segment> seg_;
+  void add_segment(std::size_t k);
 };
 
 }  // namespace pcdp

@@ -27,6 +27,16 @@ Eigen::Matrix<double, 3, 9> chain_jacobian(double r, double nu, double eta, cons
 Eigen::Matrix3d point_covariance(double r, double nu, double eta, const Eigen::Isometry3d& T_V_N, const Rpy& rpy_MV,
                                  RpyOrder order, const PointSigmas& s);
 
+/// The same covariance from what register already has: the sines and cosines of the bearing and
+/// the nod, and R_MV as a matrix (no roll, pitch, yaw). The pose-angle columns of J use
+/// d(R p)/d(angle_k) = a_k x (R p), with a_k the k-th rotation axis expressed in the map frame
+/// (xyz: e_x, Rx e_y, R e_z; zyx: R e_x, Rz e_y, e_z), the middle axis found as the unit vector
+/// normal to the other two. Equal to point_covariance (a property test checks it to 1e-9),
+/// about 4x cheaper. Falls back to it at gimbal lock (pitch within 1e-6 of +-90 degrees).
+Eigen::Matrix3d point_covariance_fast(double r, double cos_nu, double sin_nu, double cos_eta, double sin_eta,
+                                      const Eigen::Matrix3d& R_MV, const Eigen::Isometry3d& T_V_N, RpyOrder order,
+                                      const PointSigmas& s);
+
 /// 1-sigma of a uniform quantization step q: q / sqrt(12).
 inline double quantization_sigma(double q) { return q / 3.4641016151377544; }
 

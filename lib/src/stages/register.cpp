@@ -46,6 +46,12 @@ void register_pass(Pass& pass, const RegisterParams& params, const SensorParams&
   const double enc_var = std::pow(quantization_sigma(sensor.encoder_resolution), 2);
   const Eigen::Isometry3d identity = Eigen::Isometry3d::Identity();
 
+  constexpr std::size_t kBearingCache = 4096;  // power of two; indexed by beam
+  struct CachedBearing {
+    float bearing;
+    double c, s;
+  };
+  std::vector<CachedBearing> bearing_cache(kBearingCache, {std::numeric_limits<float>::quiet_NaN(), 0.0, 0.0});
   for (std::size_t i = 0; i < n; ++i) {
     const double stamp = pass.stamp[i];
     const double eta = params.skew_correction ? track.angle_at(stamp, enc_hint) : static_cast<double>(pass.nod[i]);
@@ -82,15 +88,27 @@ void register_pass(Pass& pass, const RegisterParams& params, const SensorParams&
     pass.oy[i] = o.y();
     pass.oz[i] = o.z();
     if (!has_return) continue;
-    const Eigen::Vector3d p = T_M_N * nod_frame_point(rc, pass.bearing[i], eta);
+    // The bearing's sine and cosine repeat from line to line for a beam: computed once per value.
+    const float bearing = pass.bearing[i];
+    double cn, sn;
+    const std::size_t slot = static_cast<std::size_t>(pass.beam[i]) & (kBearingCache - 1);
+    if (bearing_cache[slot].bearing == bearing) {
+      cn = bearing_cache[slot].c;
+      sn = bearing_cache[slot].s;
+    } else {
+      cn = std::cos(static_cast<double>(bearing));
+      sn = std::sin(static_cast<double>(bearing));
+      bearing_cache[slot] = {bearing, cn, sn};
+    }
+    const double ce = std::cos(eta), se = std::sin(eta);
+    const Eigen::Vector3d p = T_M_N * Eigen::Vector3d(rc * cn * ce, rc * sn, rc * cn * se);  // nod_frame_point
     pass.x[i] = p.x();
     pass.y[i] = p.y();
     pass.z[i] = p.z();
     if (params.covariance) {
       const double omega = sensor.encoder_latency_sigma > 0 ? track.rate_at(stamp, rate_hint) : 0.0;
       sig.nod = std::sqrt(enc_var + std::pow(omega * sensor.encoder_latency_sigma, 2));
-      const Rpy rpy = matrix_to_rpy(T_M_V.linear(), order);
-      const Eigen::Matrix3d C = point_covariance(rc, pass.bearing[i], eta, T_V_N, rpy, order, sig);
+      const Eigen::Matrix3d C = point_covariance_fast(rc, cn, sn, ce, se, T_M_V.linear(), T_V_N, order, sig);
       float* c = &pass.cov[6 * i];
       c[0] = static_cast<float>(C(0, 0));
       c[1] = static_cast<float>(C(0, 1));
