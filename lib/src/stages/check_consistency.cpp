@@ -1,6 +1,5 @@
 #include "pcdp/stages/check_consistency.hpp"
 
-#include <unordered_set>
 
 #include <cmath>
 
@@ -32,20 +31,20 @@ ConsistencyEvidence::PassVoxels ConsistencyEvidence::collect(const Pass& pass) c
   // repeats before the set does the rest.
   constexpr std::size_t kCache = 4096;
   std::vector<std::uint64_t> cache(kCache, ~0ull);
-  std::unordered_set<std::uint64_t> free_set, hit_set;
+  FlatMap<char> free_set, hit_set;  // used as sets
   const auto add_free = [&](std::uint64_t k) {
     std::uint64_t& c = cache[(k * 0x9E3779B97F4A7C15ull) >> 52];
     if (c == k) return;
     c = k;
-    free_set.insert(k);
+    free_set[k] = 1;
   };
   for (std::size_t i = 0; i < pass.size(); ++i) {
     if (!pass.is_kept(i) || !std::isfinite(pass.x[i]) || !std::isfinite(pass.ox[i])) continue;
     const double o[3] = {pass.ox[i], pass.oy[i], pass.oz[i]}, e[3] = {pass.x[i], pass.y[i], pass.z[i]};
     double d[3] = {e[0] - o[0], e[1] - o[1], e[2] - o[2]};
     const double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    hit_set.insert(key(static_cast<std::int64_t>(std::floor(e[0] / res)), static_cast<std::int64_t>(std::floor(e[1] / res)),
-                       static_cast<std::int64_t>(std::floor(e[2] / res))));
+    hit_set[key(static_cast<std::int64_t>(std::floor(e[0] / res)), static_cast<std::int64_t>(std::floor(e[1] / res)),
+                       static_cast<std::int64_t>(std::floor(e[2] / res)))] = 1;
     if (len <= p_.margin || len > p_.max_range) continue;
     for (double& c : d) c /= len;
     // 3-D DDA (Amanatides & Woo) from the origin to len - margin.
@@ -68,8 +67,10 @@ ConsistencyEvidence::PassVoxels ConsistencyEvidence::collect(const Pass& pass) c
       v[a] += step[a];
     }
   }
-  out.hit.assign(hit_set.begin(), hit_set.end());
-  out.free.assign(free_set.begin(), free_set.end());
+  out.hit.reserve(hit_set.size());
+  out.free.reserve(free_set.size());
+  hit_set.for_each([&](std::uint64_t k, char) { out.hit.push_back(k); });
+  free_set.for_each([&](std::uint64_t k, char) { out.free.push_back(k); });
   return out;
 }
 
@@ -90,17 +91,17 @@ std::size_t ConsistencyEvidence::label(Pass& pass) const {
     const std::int64_t x = static_cast<std::int64_t>(std::floor(pass.x[i] / res)),
                        y = static_cast<std::int64_t>(std::floor(pass.y[i] / res)),
                        z = static_cast<std::int64_t>(std::floor(pass.z[i] / res));
-    const auto it = voxels_.find(key(x, y, z));
-    if (it == voxels_.end()) continue;
-    const std::uint64_t free_other = it->second.free & ~bit;
+    const Voxel* it = voxels_.find(key(x, y, z));
+    if (!it) continue;
+    const std::uint64_t free_other = it->free & ~bit;
     if (__builtin_popcountll(free_other) < p_.min_passes) continue;
     bool hit_other = false;  // another pass returned from here or next door: a real surface
     const int h = p_.hit_radius;
     for (int dx = -h; dx <= h && !hit_other; ++dx)
       for (int dy = -h; dy <= h && !hit_other; ++dy)
         for (int dz = -h; dz <= h && !hit_other; ++dz) {
-          const auto hv = voxels_.find(key(x + dx, y + dy, z + dz));
-          hit_other = hv != voxels_.end() && (hv->second.hit & ~bit) != 0;
+          const Voxel* hv = voxels_.find(key(x + dx, y + dy, z + dz));
+          hit_other = hv && (hv->hit & ~bit) != 0;
         }
     if (hit_other) continue;
     pass.label[i] = Label::kInconsistent;

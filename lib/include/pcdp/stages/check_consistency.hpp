@@ -11,6 +11,8 @@
 
 #include <cstdint>
 #include <unordered_map>
+
+#include "pcdp/flat_map.hpp"
 #include <vector>
 
 #include "pcdp/stage.hpp"
@@ -53,7 +55,7 @@ class ConsistencyEvidence {
   };
   std::uint64_t key(std::int64_t x, std::int64_t y, std::int64_t z) const;
   ConsistencyParams p_;
-  std::unordered_map<std::uint64_t, Voxel> voxels_;
+  FlatMap<Voxel> voxels_;
 };
 
 StageInfo check_consistency_stage_info();
