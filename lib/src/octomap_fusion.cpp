@@ -20,8 +20,7 @@ octomap::OcTree make_octree(const OctoMapParams& p) {
 
 PassRays cast_pass(const octomap::OcTree& tree, const Pass& pass, const OctoMapParams& p) {
   PassRays out;
-  octomap::KeySet& free_cells = out.free_cells;
-  octomap::KeySet& occupied_cells = out.occupied_cells;
+  octomap::KeySet free_cells, occupied_cells;
   octomap::KeyRay ray;
   std::uint64_t& rays = out.rays;
   for (std::size_t i = 0; i < pass.size(); ++i) {
@@ -38,14 +37,51 @@ PassRays cast_pass(const octomap::OcTree& tree, const Pass& pass, const OctoMapP
     octomap::OcTreeKey k;
     if (tree.coordToKeyChecked(e, k)) (hit ? occupied_cells : free_cells).insert(k);  // a cut end is free
   }
+  out.free_list.reserve(free_cells.size());
+  for (const auto& k : free_cells)
+    if (occupied_cells.find(k) == occupied_cells.end()) out.free_list.push_back(k);
+  out.occupied_list.assign(occupied_cells.begin(), occupied_cells.end());
   return out;
 }
 
 void apply_rays(octomap::OcTree& tree, const PassRays& r) {
   // The tree is updated lazily (leaves only) and its inner nodes once at the end of the pass.
-  for (const auto& k : r.free_cells)
-    if (r.occupied_cells.find(k) == r.occupied_cells.end()) tree.updateNode(k, false, true);
-  for (const auto& k : r.occupied_cells) tree.updateNode(k, true, true);
+  for (const auto& k : r.free_list) tree.updateNode(k, false, true);
+  for (const auto& k : r.occupied_list) tree.updateNode(k, true, true);
+  tree.updateInnerOccupancy();
+}
+
+OccupancyAccumulator::OccupancyAccumulator(const OctoMapParams& p) {
+  const octomap::OcTree model = make_octree(p);  // the tree's own float log-odds and thresholds
+  hit_ = model.getProbHitLog();
+  miss_ = model.getProbMissLog();
+  min_ = model.getClampingThresMinLog();
+  max_ = model.getClampingThresMaxLog();
+}
+
+void OccupancyAccumulator::update(const octomap::OcTreeKey& k, float delta) {
+  float& v = logodds_[pack(k)];  // a new leaf starts at 0 (OcTreeNode's log-odds)
+  // updateNode's early abort: a leaf at the threshold in the update's direction does not change.
+  if ((delta >= 0 && v >= max_) || (delta <= 0 && v <= min_)) return;
+  v += delta;  // updateNodeLogOdds
+  if (v < min_) {
+    v = min_;
+    return;
+  }
+  if (v > max_) v = max_;
+}
+
+void OccupancyAccumulator::add(const PassRays& r) {
+  for (const auto& k : r.free_list) update(k, miss_);
+  for (const auto& k : r.occupied_list) update(k, hit_);
+}
+
+void OccupancyAccumulator::build(octomap::OcTree& tree) const {
+  logodds_.for_each([&](std::uint64_t key, float v) {
+    const octomap::OcTreeKey k(static_cast<octomap::key_type>(key >> 32), static_cast<octomap::key_type>((key >> 16) & 0xffff),
+                               static_cast<octomap::key_type>(key & 0xffff));
+    tree.setNodeValue(k, v, true);
+  });
   tree.updateInnerOccupancy();
 }
 

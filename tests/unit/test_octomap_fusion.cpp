@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <set>
+#include <sstream>
 
 #include "pcdp/octomap_fusion.hpp"
 #include "pcdp/pass.hpp"
@@ -70,4 +71,39 @@ TEST(OctoMapFusion, InsertingLineByLineLosesOccupiedCells) {
   std::cout << "occupied keys: batched per pass " << nb << ", line by line " << nl << " (" << 100 * (1 - nl / nb)
             << " % lost)\n";
   EXPECT_LT(nl, 0.9 * nb);
+}
+
+TEST(OctoMapFusion, AccumulatedLogOddsBuildTheTreeThatPassByPassUpdatesBuild) {
+  // fuse_octomap accumulates each leaf's clamped log-odds in a flat map and builds the tree once;
+  // updating the tree pass by pass (apply_rays) must give the same leaves, values and file. Tight
+  // clamping makes the thresholds and the early abort matter.
+  const auto passes = static_vehicle_passes();
+  OctoMapParams p;
+  p.clamping_min = 0.3;
+  p.clamping_max = 0.8;
+  octomap::OcTree direct = make_octree(p), built = make_octree(p);
+  OccupancyAccumulator acc(p);
+  for (int round = 0; round < 3; ++round)  // the same passes again: leaves reach the thresholds
+    for (const auto& pass : passes) {
+      const PassRays r = cast_pass(direct, pass, p);
+      apply_rays(direct, r);
+      acc.add(r);
+    }
+  acc.build(built);
+  ASSERT_GT(acc.cells(), 1000u);
+  EXPECT_EQ(direct.size(), built.size());
+  std::size_t leaves = 0, at_max = 0;
+  for (auto it = direct.begin_leafs(), end = direct.end_leafs(); it != end; ++it) {
+    const octomap::OcTreeNode* n = built.search(it.getKey());
+    ASSERT_NE(n, nullptr);
+    EXPECT_EQ(n->getLogOdds(), it->getLogOdds());
+    ++leaves;
+    at_max += it->getLogOdds() == direct.getClampingThresMaxLog();
+  }
+  EXPECT_EQ(leaves, acc.cells());
+  EXPECT_GT(at_max, 100u);  // the clamping was exercised
+  std::ostringstream a, b;
+  direct.writeBinaryConst(a);
+  built.writeBinaryConst(b);
+  EXPECT_TRUE(a.str() == b.str());
 }
