@@ -1,5 +1,6 @@
 #include "pcdp/stages/fuse_elevation.hpp"
 
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 
@@ -61,8 +62,10 @@ class FuseElevationStage final : public Stage {
   }
   void process(Pass& pass, StageReport&) override { fuse_pass(grid_, pass, params_, fallback_var_); }
   void finish(OutputSink& sink, StageReport& report) override {
+    const auto t0 = std::chrono::steady_clock::now();
     io::write_elevation_geotiff(grid_, sink.staged_path("elevation.tif"));
     if (params_.png) io::write_elevation_png(grid_, sink.staged_path("elevation.png"));
+    report.metrics["write_seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::size_t fused = 0;
     grid_.for_each([&](std::int64_t, std::int64_t, const ElevationCell& c) {
       double e, v;

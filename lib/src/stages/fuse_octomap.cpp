@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cstdio>
 #include <fstream>
 
@@ -44,6 +45,7 @@ class FuseOctoMapStage final : public Stage {
   void process(Pass& pass, StageReport& report) override { apply(compute(pass, report), report); }
   void finish(OutputSink& sink, StageReport& report) override {
     cells_.build(tree_);
+    const auto t0 = std::chrono::steady_clock::now();
     // liboctomap (as Debian builds it) logs " done." to stderr while writing binary trees; a
     // tool run with --quiet must print nothing, so stderr is muted around that one call.
     const std::string bt = sink.staged_path("map.bt");
@@ -66,6 +68,7 @@ class FuseOctoMapStage final : public Stage {
       std::ofstream out(ot, std::ios::binary);
       if (!out || !tree_.write(out) || !out.flush()) throw std::runtime_error(ot + ": cannot write the map");
     }
+    report.metrics["write_seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::size_t occupied = 0;
     for (auto it = tree_.begin_leafs(), end = tree_.end_leafs(); it != end; ++it) occupied += tree_.isNodeOccupied(*it);
     report.metrics["occupied_leaves"] = static_cast<double>(occupied);
