@@ -20,7 +20,21 @@ octomap::OcTree make_octree(const OctoMapParams& p) {
 
 PassRays cast_pass(const octomap::OcTree& tree, const Pass& pass, const OctoMapParams& p) {
   PassRays out;
-  octomap::KeySet free_cells, occupied_cells;
+  // Each cell once per pass, in flat sets (1 free, 2 occupied: occupied wins); a small
+  // direct-mapped cache drops most repeats first (neighbouring rays cross the same cells).
+  FlatMap<char> cells;
+  std::vector<std::uint64_t> cache(4096, ~0ull);
+  const auto pack = [](const octomap::OcTreeKey& k) {
+    return (static_cast<std::uint64_t>(k[0]) << 32) | (static_cast<std::uint64_t>(k[1]) << 16) | k[2];
+  };
+  const auto mark_free = [&](const octomap::OcTreeKey& key) {
+    const std::uint64_t k = pack(key);
+    std::uint64_t& c = cache[(k * 0x9E3779B97F4A7C15ull) >> 52];
+    if (c == k) return;
+    c = k;
+    char& v = cells[k];
+    if (v == 0) v = 1;
+  };
   octomap::KeyRay ray;
   std::uint64_t& rays = out.rays;
   for (std::size_t i = 0; i < pass.size(); ++i) {
@@ -33,14 +47,21 @@ PassRays cast_pass(const octomap::OcTree& tree, const Pass& pass, const OctoMapP
       hit = false;
     }
     ++rays;
-    if (tree.computeRayKeys(o, e, ray)) free_cells.insert(ray.begin(), ray.end());
+    if (tree.computeRayKeys(o, e, ray))
+      for (const auto& k : ray) mark_free(k);
     octomap::OcTreeKey k;
-    if (tree.coordToKeyChecked(e, k)) (hit ? occupied_cells : free_cells).insert(k);  // a cut end is free
+    if (tree.coordToKeyChecked(e, k)) {
+      if (hit)
+        cells[pack(k)] = 2;
+      else
+        mark_free(k);  // a cut end is free
+    }
   }
-  out.free_list.reserve(free_cells.size());
-  for (const auto& k : free_cells)
-    if (occupied_cells.find(k) == occupied_cells.end()) out.free_list.push_back(k);
-  out.occupied_list.assign(occupied_cells.begin(), occupied_cells.end());
+  cells.for_each([&](std::uint64_t k, char v) {
+    const octomap::OcTreeKey key(static_cast<octomap::key_type>(k >> 32), static_cast<octomap::key_type>((k >> 16) & 0xffff),
+                                 static_cast<octomap::key_type>(k & 0xffff));
+    (v == 2 ? out.occupied_list : out.free_list).push_back(key);
+  });
   return out;
 }
 
