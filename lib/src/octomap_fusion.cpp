@@ -22,7 +22,7 @@ PassRays cast_pass(const octomap::OcTree& tree, const Pass& pass, const OctoMapP
   PassRays out;
   // Each cell once per pass, in flat sets (1 free, 2 occupied: occupied wins); a small
   // direct-mapped cache drops most repeats first (neighbouring rays cross the same cells).
-  FlatMap<char> cells;
+  FlatMap<char> cells(0x5bd1e995u);  // another salt than OccupancyAccumulator's map, which it feeds
   std::vector<std::uint64_t> cache(4096, ~0ull);
   const auto pack = [](const octomap::OcTreeKey& k) {
     return (static_cast<std::uint64_t>(k[0]) << 32) | (static_cast<std::uint64_t>(k[1]) << 16) | k[2];

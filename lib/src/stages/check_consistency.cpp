@@ -31,7 +31,7 @@ ConsistencyEvidence::PassVoxels ConsistencyEvidence::collect(const Pass& pass) c
   // repeats before the set does the rest.
   constexpr std::size_t kCache = 4096;
   std::vector<std::uint64_t> cache(kCache, ~0ull);
-  FlatMap<char> free_set, hit_set;  // used as sets
+  FlatMap<char> free_set(0x5bd1e995u), hit_set(0x27d4eb2fu);  // used as sets; salts unlike voxels_'s
   const auto add_free = [&](std::uint64_t k) {
     std::uint64_t& c = cache[(k * 0x9E3779B97F4A7C15ull) >> 52];
     if (c == k) return;
