@@ -541,7 +541,7 @@ TEST(FullChain, ConsistencyRaisesRecallWithinTheFalseRejectionBudget) {
 TEST(Cli, AKilledRunLeavesNoFileThatLooksComplete) {
   // A run long enough to interrupt: many passes of the sample scene's sensor.
   const std::string dir = test::fresh_dir();
-  test::write_text(dir + "/scene.yaml", "passes: 40\nlines_per_pass: 150\nscanner: {beams: 241, subrays: 1}\n");
+  test::write_text(dir + "/scene.yaml", "passes: 80\nlines_per_pass: 150\nscanner: {beams: 241, subrays: 1}\n");
   ASSERT_EQ(run_cli({"simulate", dir + "/scene.yaml", "--output-dir", dir + "/data", "-q"}).exit_code, 0);
   test::write_text(dir + "/p.yaml", "input: {scans: data/pass_*.pcd, poses: data/poses.csv}\noutput_dir: out\nstages:\n"
                                     "  - type: register\n  - type: check_consistency\n  - type: fuse_octomap\n");
@@ -552,7 +552,16 @@ TEST(Cli, AKilledRunLeavesNoFileThatLooksComplete) {
     execl(PCDP_CLI_PATH, PCDP_CLI_PATH, "run", yaml.c_str(), "-q", static_cast<char*>(nullptr));
     _exit(127);
   }
-  usleep(400 * 1000);  // mid-way: the prepass and the first passes
+  // Mid-way: as soon as the run has opened its temporary outputs (it does before the first pass),
+  // plus a moment, so the kill lands while passes are being processed and written.
+  for (int i = 0; i < 2000; ++i) {
+    bool staged = false;
+    if (fs::exists(dir + "/out"))
+      for (const auto& e : fs::directory_iterator(dir + "/out")) staged |= e.path().filename().string().rfind(".", 0) == 0;
+    if (staged) break;
+    usleep(1000);
+  }
+  usleep(50 * 1000);
   kill(pid, SIGKILL);
   int status = 0;
   waitpid(pid, &status, 0);
