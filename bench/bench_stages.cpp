@@ -113,3 +113,19 @@ static void BM_OctoMapApply(benchmark::State& state) {
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * d.mixed.size()));
 }
 BENCHMARK(BM_OctoMapApply)->UseRealTime();
+
+static void BM_OctoMapAccumulateAndBuild(benchmark::State& state) {
+  // What fuse_octomap does in pass order (add) and once at the end (build), for one pass.
+  const Data& d = data();
+  const OctoMapParams op;
+  const PassRays rays = cast_pass(make_octree(op), d.mixed, op);
+  for (auto _ : state) {
+    OccupancyAccumulator acc(op);
+    acc.add(rays);
+    octomap::OcTree tree = make_octree(op);
+    acc.build(tree);
+    benchmark::DoNotOptimize(tree.size());
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * d.mixed.size()));
+}
+BENCHMARK(BM_OctoMapAccumulateAndBuild)->UseRealTime();
