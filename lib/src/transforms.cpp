@@ -7,6 +7,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "small_angle.hpp"
+
 namespace pcdp {
 
 const char* rpy_order_name(RpyOrder o) { return o == RpyOrder::kXyz ? "xyz" : "zyx"; }
@@ -146,12 +148,18 @@ Eigen::Isometry3d PoseTrack::at(double stamp, std::size_t& hint) const {
   const PoseSample& b = samples_[hint + 1];
   const double s = (stamp - a.stamp) / (b.stamp - a.stamp);
   // interpolate(a, b, s) with the segment's angle cached: the same arithmetic as Eigen's slerp
-  // (Quaternion::slerp, Eigen 3.4), so the same result to the bit (tests/unit/test_transforms.cpp).
+  // (Quaternion::slerp, Eigen 3.4), with small angles' sines by their series: the same result to
+  // rounding (tests/unit/test_transforms.cpp).
   const Segment& g = seg_[hint];
   double scale0, scale1;
   if (std::fabs(g.dot) >= 1.0 - Eigen::NumTraits<double>::epsilon()) {
     scale0 = 1.0 - s;
     scale1 = s;
+  } else if (g.theta <= detail::kSmallAngle) {
+    // Nearby poses (the usual case: theta is half the rotation between two samples): the sines
+    // by their series, equal to std::sin to rounding and several times cheaper.
+    scale0 = detail::sin_small((1.0 - s) * g.theta) / g.sin_theta;
+    scale1 = detail::sin_small(s * g.theta) / g.sin_theta;
   } else {
     scale0 = std::sin((1.0 - s) * g.theta) / g.sin_theta;
     scale1 = std::sin(s * g.theta) / g.sin_theta;

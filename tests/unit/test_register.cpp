@@ -5,6 +5,8 @@
 #include "pcdp/pass.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
 #include "pcdp/stages/register.hpp"
+#include "pcdp/skew.hpp"
+#include "pcdp/uncertainty.hpp"
 #include "test_support.hpp"
 
 using namespace pcdp;
@@ -162,4 +164,47 @@ TEST(Register, ABlindedSensorIsReportedWithItsLineRange) {
       << w[0];
   EXPECT_TRUE(blind_runs(p, 9).empty());  // shorter than the threshold
   EXPECT_TRUE(blind_runs(f.run.passes[0].pass, 5).empty());
+}
+
+TEST(Register, StoredCovarianceIsTheAnglePathCovarianceAtEachReturnsOwnPoseAndNod) {
+  // register computes the covariance from what it already has (R_MN, the point, the nod's sines
+  // by angle addition); it must equal point_covariance (roll, pitch, yaw and elementary
+  // rotations) at the return's own interpolated pose, skew-corrected nod and calibrated range,
+  // for both RPY orders, to the float precision it is stored in.
+  for (RpyOrder order : {RpyOrder::kXyz, RpyOrder::kZyx}) {
+    Fixture f;
+    f.cfg.rpy_order = order;
+    f.run = sim::simulate(f.cfg);
+    f.poses = PoseTrack(f.run.poses);
+    f.T_V_N = make_transform(f.cfg.mount_translation, f.cfg.mount_rpy, order);
+    f.sensor.range_k = 1.0003;
+    f.sensor.bearing_resolution = 0.0087;
+    PoseSigma ps;
+    ps.position = 0.02;
+    ps.rpy = 0.002;
+    Pass p = f.run.passes[0].pass;
+    register_pass(p, RegisterParams{}, f.sensor, f.T_V_N, &f.poses, ps, order);
+    const EncoderTrack track = encoder_track(p, f.sensor.encoder_latency);
+    PointSigmas s;
+    s.range = f.sensor.range_k * f.sensor.range_sigma;
+    s.bearing = quantization_sigma(f.sensor.bearing_resolution);
+    s.nod = quantization_sigma(f.sensor.encoder_resolution);
+    s.position = Eigen::Vector3d::Constant(ps.position);
+    s.rpy = Eigen::Vector3d::Constant(ps.rpy);
+    std::size_t checked = 0, hint = 0, enc_hint = 0;
+    for (std::size_t i = 0; i < p.size(); i += 7) {
+      if (!std::isfinite(p.x[i])) continue;
+      const double eta = track.angle_at(p.stamp[i], enc_hint);
+      EXPECT_NEAR(p.nod_at_return[i], eta, 1e-6);
+      const Eigen::Isometry3d T_M_V = f.poses.at(p.stamp[i], hint);
+      const Eigen::Matrix3d C = point_covariance(f.sensor.calibrated_range(p.range[i]), p.bearing[i], eta, f.T_V_N,
+                                                 matrix_to_rpy(T_M_V.linear(), order), order, s);
+      const float* c = &p.cov[6 * i];
+      const double got[6] = {c[0], c[1], c[2], c[3], c[4], c[5]};
+      const double want[6] = {C(0, 0), C(0, 1), C(0, 2), C(1, 1), C(1, 2), C(2, 2)};
+      for (int k = 0; k < 6; ++k) ASSERT_NEAR(got[k], want[k], 1e-5 * C.norm()) << rpy_order_name(order) << " return " << i << " entry " << k;
+      ++checked;
+    }
+    EXPECT_GT(checked, p.size() / 20);
+  }
 }

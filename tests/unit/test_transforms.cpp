@@ -1,9 +1,11 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
 #include "pcdp/transforms.hpp"
+#include "small_angle.hpp"
 
 using namespace pcdp;
 
@@ -135,9 +137,10 @@ TEST(Transforms, PoseTrackInterpolatesAndReportsCoverage) {
   EXPECT_DOUBLE_EQ(track.gap_at(11.2, hint), 1.0);
 }
 
-TEST(PoseTrack, CachedSlerpIsEigensSlerpToTheBit) {
-  // at() caches each segment's slerp angle; the result must be exactly interpolate()'s (Eigen's
-  // Quaternion::slerp), including nearly equal orientations (lerp branch) and opposite signs.
+TEST(PoseTrack, CachedSlerpIsEigensSlerpToRounding) {
+  // at() caches each segment's slerp angle and takes small angles' sines by their series; the
+  // result must be interpolate()'s (Eigen's Quaternion::slerp) to rounding, for nearly equal
+  // orientations (lerp branch), angles on both sides of the series' limit and opposite signs.
   std::mt19937 rng(9);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   std::vector<PoseSample> v;
@@ -145,7 +148,7 @@ TEST(PoseTrack, CachedSlerpIsEigensSlerpToTheBit) {
     PoseSample p;
     p.stamp = 0.01 * k;
     p.position = Eigen::Vector3d(u(rng), u(rng), u(rng));
-    const double step = k % 3 == 0 ? 1e-9 : 0.3;  // some segments below Eigen's lerp threshold
+    const double step = k % 3 == 0 ? 1e-9 : (k % 3 == 1 ? 0.03 : 0.3);  // lerp, series, std::sin
     Eigen::Quaterniond q = k ? v.back().orientation * Eigen::Quaterniond(Eigen::AngleAxisd(step * u(rng), Eigen::Vector3d(u(rng), u(rng), 1).normalized()))
                              : Eigen::Quaterniond::Identity();
     if (k % 7 == 0) q.coeffs() = -q.coeffs();  // the same rotation, the other sign
@@ -165,8 +168,29 @@ TEST(PoseTrack, CachedSlerpIsEigensSlerpToTheBit) {
     a0.orientation.normalize();
     b0.orientation.normalize();
     const PoseSample e = interpolate(a0, b0, s);
-    EXPECT_TRUE(a.linear() == e.orientation.toRotationMatrix()) << i;
+    // A few units in the last place of entries of magnitude <= 1 (the series differs from
+    // std::sin by rounding only; a wrong branch or coefficient would be off by far more).
+    EXPECT_LT((a.linear() - e.orientation.toRotationMatrix()).cwiseAbs().maxCoeff(), 1e-15) << i;
     EXPECT_TRUE(a.translation() == e.position) << i;
-    EXPECT_TRUE(a.matrix() == b.matrix()) << i;
+    EXPECT_TRUE(a.matrix() == b.matrix()) << i;  // the live track computes the same thing
   }
+}
+
+TEST(SmallAngle, SeriesEqualTheLibraryFunctionsToRoundingUpToTheirLimit) {
+  // sin_small and cos_small replace std::sin / std::cos below kSmallAngle in the hot loops
+  // (slerp, the nod's step): they must agree to a few ulp over the whole range, including the
+  // limit where the first omitted term is largest.
+  double worst_sin = 0, worst_cos = 0;
+  for (int k = -20000; k <= 20000; ++k) {
+    const double x = detail::kSmallAngle * k / 20000.0;
+    if (x != 0.0) worst_sin = std::max(worst_sin, std::fabs(detail::sin_small(x) - std::sin(x)) / std::fabs(std::sin(x)));
+    worst_cos = std::max(worst_cos, std::fabs(detail::cos_small(x) - std::cos(x)));
+  }
+  EXPECT_LT(worst_sin, 4.5e-16);  // 2 ulp relative
+  EXPECT_LT(worst_cos, 2.3e-16);  // 2 ulp of values near 1
+  EXPECT_EQ(detail::sin_small(0.0), 0.0);
+  EXPECT_EQ(detail::cos_small(0.0), 1.0);
+  // Odd and even, as the functions they replace.
+  EXPECT_EQ(detail::sin_small(-0.07), -detail::sin_small(0.07));
+  EXPECT_EQ(detail::cos_small(-0.07), detail::cos_small(0.07));
 }

@@ -35,6 +35,8 @@ class EncoderTrack {
   /// The local nod rate (rad/s) at `stamp`: the slope of the bracketing readings (0 with one).
   double rate_at(double stamp, std::size_t& hint) const;
   std::size_t size() const { return t_.size(); }
+  /// Reading k (after angle_at, `hint` holds the k whose bracket [k, k + 1] gave the angle).
+  double reading(std::size_t k) const { return a_[k]; }
 
  private:
   std::size_t bracket(double stamp, std::size_t hint) const;

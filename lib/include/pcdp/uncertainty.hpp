@@ -36,6 +36,13 @@ Eigen::Matrix3d point_covariance(double r, double nu, double eta, const Eigen::I
 Eigen::Matrix3d point_covariance_fast(double r, double cos_nu, double sin_nu, double cos_eta, double sin_eta,
                                       const Eigen::Matrix3d& R_MV, const Eigen::Isometry3d& T_V_N, RpyOrder order,
                                       const PointSigmas& s);
+/// The same from what register has already computed for the point: R_MN = R_MV R_VN and
+/// Rp = R_MV (T_V_N p_N) (the point relative to the vehicle, in map axes). A sum of one rank-1
+/// term per error source (the measurement columns of J are orthogonal in the nod frame).
+Eigen::Matrix3d point_covariance_fast(double r, double cos_nu, double sin_nu, double cos_eta, double sin_eta,
+                                      const Eigen::Matrix3d& R_MV, const Eigen::Isometry3d& T_V_N,
+                                      const Eigen::Matrix3d& R_MN, const Eigen::Vector3d& Rp, RpyOrder order,
+                                      const PointSigmas& s);
 
 /// 1-sigma of a uniform quantization step q: q / sqrt(12).
 inline double quantization_sigma(double q) { return q / 3.4641016151377544; }

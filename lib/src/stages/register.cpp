@@ -6,6 +6,7 @@
 #include "pcdp/pass.hpp"
 #include "pcdp/skew.hpp"
 #include "pcdp/uncertainty.hpp"
+#include "../small_angle.hpp"
 
 namespace pcdp {
 
@@ -52,9 +53,38 @@ void register_pass(Pass& pass, const RegisterParams& params, const SensorParams&
     double c, s;
   };
   std::vector<CachedBearing> bearing_cache(kBearingCache, {std::numeric_limits<float>::quiet_NaN(), 0.0, 0.0});
+  // The nod's sine and cosine: those of a base angle (the reading that starts the return's
+  // encoder bracket, or the line's own reading without skew correction), computed once per base,
+  // turned by the small step to the return's angle (angle addition with the step's sine and
+  // cosine by their series: equal to std::sin / std::cos to rounding). The base depends only on
+  // the return's bracket, not on what came before, so a streamed line gets the same values.
+  double base = kNaN, base_c = 1.0, base_s = 0.0;
+  const auto nod_sincos = [&](double eta, double b, double& c, double& s) {
+    if (!(b == base)) {
+      base = b;
+      base_c = std::cos(b);
+      base_s = std::sin(b);
+    }
+    const double d = eta - b;
+    if (std::fabs(d) <= detail::kSmallAngle) {
+      const double cd = detail::cos_small(d), sd = detail::sin_small(d);
+      c = base_c * cd - base_s * sd;
+      s = base_s * cd + base_c * sd;
+    } else {
+      c = std::cos(eta);
+      s = std::sin(eta);
+    }
+  };
   for (std::size_t i = 0; i < n; ++i) {
     const double stamp = pass.stamp[i];
-    const double eta = params.skew_correction ? track.angle_at(stamp, enc_hint) : static_cast<double>(pass.nod[i]);
+    double eta, eta_base;
+    if (params.skew_correction && track.size() > 1) {
+      eta = track.angle_at(stamp, enc_hint);
+      eta_base = track.reading(enc_hint);  // angle_at left the bracket in the hint
+    } else {
+      eta = params.skew_correction && track.size() == 1 ? track.angle_at(stamp, enc_hint) : static_cast<double>(pass.nod[i]);
+      eta_base = eta;
+    }
     pass.nod_at_return[i] = static_cast<float>(eta);
 
     const float r = pass.range[i];
@@ -100,7 +130,8 @@ void register_pass(Pass& pass, const RegisterParams& params, const SensorParams&
       sn = std::sin(static_cast<double>(bearing));
       bearing_cache[slot] = {bearing, cn, sn};
     }
-    const double ce = std::cos(eta), se = std::sin(eta);
+    double ce, se;
+    nod_sincos(eta, eta_base, ce, se);
     const Eigen::Vector3d p = T_M_N * Eigen::Vector3d(rc * cn * ce, rc * sn, rc * cn * se);  // nod_frame_point
     pass.x[i] = p.x();
     pass.y[i] = p.y();
@@ -108,7 +139,8 @@ void register_pass(Pass& pass, const RegisterParams& params, const SensorParams&
     if (params.covariance) {
       const double omega = sensor.encoder_latency_sigma > 0 ? track.rate_at(stamp, rate_hint) : 0.0;
       sig.nod = std::sqrt(enc_var + std::pow(omega * sensor.encoder_latency_sigma, 2));
-      const Eigen::Matrix3d C = point_covariance_fast(rc, cn, sn, ce, se, T_M_V.linear(), T_V_N, order, sig);
+      const Eigen::Matrix3d C = point_covariance_fast(rc, cn, sn, ce, se, T_M_V.linear(), T_V_N, T_M_N.linear(),
+                                                      p - T_M_V.translation(), order, sig);
       float* c = &pass.cov[6 * i];
       c[0] = static_cast<float>(C(0, 0));
       c[1] = static_cast<float>(C(0, 1));
