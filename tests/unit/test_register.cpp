@@ -37,8 +37,9 @@ struct Fixture {
   PoseTrack poses;
   SensorParams sensor;
   Eigen::Isometry3d T_V_N;
-  Fixture() {
+  explicit Fixture(RpyOrder order = RpyOrder::kXyz) {
     cfg.passes = 1;
+    cfg.rpy_order = order;
     run = sim::simulate(cfg);
     poses = PoseTrack(run.poses);
     sensor.range_max = cfg.scanner.range_max;
@@ -49,11 +50,7 @@ struct Fixture {
 
 TEST(Register, NoiseFreePassRegistersToTheTruth) {
   for (RpyOrder order : {RpyOrder::kXyz, RpyOrder::kZyx}) {
-    Fixture f;
-    f.cfg.rpy_order = order;
-    f.run = sim::simulate(f.cfg);
-    f.poses = PoseTrack(f.run.poses);
-    f.T_V_N = make_transform(f.cfg.mount_translation, f.cfg.mount_rpy, order);
+    Fixture f(order);
     Pass p = f.run.passes[0].pass;
     register_pass(p, RegisterParams{}, f.sensor, f.T_V_N, &f.poses);
     const Errors e = compare(p, f.run.passes[0]);
@@ -172,11 +169,7 @@ TEST(Register, StoredCovarianceIsTheAnglePathCovarianceAtEachReturnsOwnPoseAndNo
   // rotations) at the return's own interpolated pose, skew-corrected nod and calibrated range,
   // for both RPY orders, to the float precision it is stored in.
   for (RpyOrder order : {RpyOrder::kXyz, RpyOrder::kZyx}) {
-    Fixture f;
-    f.cfg.rpy_order = order;
-    f.run = sim::simulate(f.cfg);
-    f.poses = PoseTrack(f.run.poses);
-    f.T_V_N = make_transform(f.cfg.mount_translation, f.cfg.mount_rpy, order);
+    Fixture f(order);
     f.sensor.range_k = 1.0003;
     f.sensor.bearing_resolution = 0.0087;
     PoseSigma ps;
