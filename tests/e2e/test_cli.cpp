@@ -15,6 +15,7 @@
 #include <tuple>
 
 #include "pcdp/io/import_3dtk.hpp"
+#include "pcdp/labels.hpp"
 #include "pcdp/io/pcd.hpp"
 #include "pcdp_test_paths.hpp"
 #include "test_support.hpp"
@@ -583,6 +584,17 @@ TEST(Docs, TheStageReferenceIsGeneratedAndUpToDate) {
   for (const auto& name : {"register", "reject_occlusion", "reject_mixed_pixels", "check_consistency", "fuse_elevation",
                            "fuse_octomap", "range_calibration.k", "transceiver_angle"})
     EXPECT_NE(res.out.find(name), std::string::npos) << name;
+}
+
+TEST(Docs, TheDataContractNamesEveryLabel) {
+  // docs/data_contract.md is the users' copy of the contract: its label table must list every
+  // code the library has, with the name report.json uses.
+  const std::string doc = test::read_text(std::string(PCDP_SOURCE_DIR) + "/docs/data_contract.md");
+  for (std::size_t code = 0; code < kLabelCount; ++code) {
+    const std::string row = "| " + std::to_string(code) + " | `" + label_name(static_cast<Label>(code)) + "` |";
+    EXPECT_NE(doc.find(row), std::string::npos) << "docs/data_contract.md has no row " << row;
+  }
+  EXPECT_EQ(doc.find("| " + std::to_string(kLabelCount) + " | `"), std::string::npos) << "a label the code does not have";
 }
 
 // ---- real data: Kurt3D (3DTK) ---------------------------------------------------------------
