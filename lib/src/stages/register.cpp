@@ -77,14 +77,10 @@ void register_pass(Pass& pass, const RegisterParams& params, const SensorParams&
   };
   for (std::size_t i = 0; i < n; ++i) {
     const double stamp = pass.stamp[i];
-    double eta, eta_base;
-    if (params.skew_correction && track.size() > 1) {
-      eta = track.angle_at(stamp, enc_hint);
-      eta_base = track.reading(enc_hint);  // angle_at left the bracket in the hint
-    } else {
-      eta = params.skew_correction && track.size() == 1 ? track.angle_at(stamp, enc_hint) : static_cast<double>(pass.nod[i]);
-      eta_base = eta;
-    }
+    const double eta = params.skew_correction ? track.angle_at(stamp, enc_hint) : static_cast<double>(pass.nod[i]);
+    // angle_at left the return's bracket [k, k + 1] in the hint; with fewer than two readings
+    // (or no skew correction) there is no bracket and the angle is its own base.
+    const double eta_base = params.skew_correction && track.size() > 1 ? track.reading(enc_hint) : eta;
     pass.nod_at_return[i] = static_cast<float>(eta);
 
     const float r = pass.range[i];
