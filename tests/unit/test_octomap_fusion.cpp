@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <random>
 #include <set>
+#include <tuple>
 #include <sstream>
 
 #include "pcdp/octomap_fusion.hpp"
@@ -106,4 +108,61 @@ TEST(OctoMapFusion, AccumulatedLogOddsBuildTheTreeThatPassByPassUpdatesBuild) {
   direct.writeBinaryConst(a);
   built.writeBinaryConst(b);
   EXPECT_TRUE(a.str() == b.str());
+  // fuse_octomap writes map.bt without building the tree: the same bytes, node and occupied counts.
+  const OccupancyAccumulator::BinaryMap enc = acc.encode_binary();
+  EXPECT_TRUE(enc.bytes == a.str());
+  EXPECT_EQ(enc.nodes, direct.size());
+  std::size_t occupied = 0;
+  for (auto it = direct.begin_leafs(), end = direct.end_leafs(); it != end; ++it) occupied += direct.isNodeOccupied(*it);
+  EXPECT_EQ(enc.occupied_leaves, occupied);
+}
+
+TEST(OctoMapFusion, EncodedBinaryIsOctoMapsOwnFileForAnyLeaves) {
+  // Keys at both ends of the key space and in dense clusters (siblings at every depth), a leaf
+  // exactly at the occupancy threshold (occupied: OctoMap uses >=), an odd resolution (the header's
+  // number format), and an empty map.
+  OctoMapParams p;
+  p.resolution = 0.123456789;
+  p.prob_miss = 0.4;
+  p.occupancy_threshold = 0.4;  // a leaf missed once sits exactly at the threshold
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<int> any(0, 65535), near(-3, 3);
+  PassRays r;
+  std::set<std::tuple<int, int, int>> used;
+  const auto put = [&](int x, int y, int z, bool hit) {
+    if (x < 0 || y < 0 || z < 0 || x > 65535 || y > 65535 || z > 65535 || !used.insert({x, y, z}).second) return;
+    using K = octomap::key_type;
+    (hit ? r.occupied_list : r.free_list).push_back(octomap::OcTreeKey(static_cast<K>(x), static_cast<K>(y), static_cast<K>(z)));
+  };
+  for (int c = 0; c < 40; ++c) {
+    const int cx = any(rng), cy = any(rng), cz = any(rng);
+    for (int k = 0; k < 60; ++k) put(cx + near(rng), cy + near(rng), cz + near(rng), k % 3 == 0);
+  }
+  for (int x : {0, 65535})
+    for (int y : {0, 65535})
+      for (int z : {0, 65535}) put(x, y, z, (x + y + z) % 2 == 0);
+  OccupancyAccumulator acc(p);
+  acc.add(r);
+  octomap::OcTree tree = make_octree(p);
+  acc.build(tree);
+  std::ostringstream want;
+  tree.writeBinaryConst(want);
+  const OccupancyAccumulator::BinaryMap enc = acc.encode_binary();
+  ASSERT_GT(r.free_list.size(), 1000u);
+  EXPECT_TRUE(enc.bytes == want.str()) << "sizes " << enc.bytes.size() << " vs " << want.str().size();
+  EXPECT_EQ(enc.nodes, tree.size());
+  EXPECT_EQ(enc.occupied_leaves, r.free_list.size() + r.occupied_list.size());  // every leaf >= the threshold
+  // It reads back as the same tree.
+  std::istringstream in(enc.bytes);
+  octomap::OcTree back(0.1);
+  ASSERT_TRUE(back.readBinary(in));
+  EXPECT_EQ(back.size(), tree.size());
+  EXPECT_DOUBLE_EQ(back.getResolution(), 0.123457);  // the format's header keeps 6 digits (OctoMap's own writer too)
+
+  OccupancyAccumulator none(p);
+  octomap::OcTree empty = make_octree(p);
+  std::ostringstream empty_file;
+  empty.writeBinaryConst(empty_file);
+  EXPECT_TRUE(none.encode_binary().bytes == empty_file.str());
+  EXPECT_EQ(none.encode_binary().nodes, 0u);
 }

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <set>
+#include <string>
 #include <tuple>
 
 #include <octomap/OcTree.h>
@@ -62,12 +63,27 @@ class OccupancyAccumulator {
   void build(octomap::OcTree& tree) const;
   std::size_t cells() const { return logodds_.size(); }
 
+  /// The map in OctoMap's compact binary format (.bt), with the tree's node count (root, inner
+  /// nodes and leaves, as OcTree::size() counts them) and its occupied leaves.
+  struct BinaryMap {
+    std::string bytes;
+    std::size_t nodes = 0, occupied_leaves = 0;
+  };
+  /// The .bt file of the accumulated leaves, byte for byte what build() and
+  /// OcTree::writeBinaryConst give (tested), without building the tree: the leaves are sorted in
+  /// Morton order (x, y, z bits interleaved, the octree's child order), and the tree is walked
+  /// depth first over that list. Each node is two bytes, two bits per child in child order
+  /// (00 absent, 01 free leaf, 10 occupied leaf, 11 inner node, low bit first), then its inner
+  /// children in order.
+  BinaryMap encode_binary() const;
+
  private:
   static std::uint64_t pack(const octomap::OcTreeKey& k) {
     return (static_cast<std::uint64_t>(k[0]) << 32) | (static_cast<std::uint64_t>(k[1]) << 16) | k[2];
   }
   void update(const octomap::OcTreeKey& k, float delta);
-  float hit_ = 0, miss_ = 0, min_ = 0, max_ = 0;
+  float hit_ = 0, miss_ = 0, min_ = 0, max_ = 0, occupied_ = 0;
+  double resolution_ = 0.1;
   FlatMap<float> logodds_;
 };
 
