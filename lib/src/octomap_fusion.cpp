@@ -111,9 +111,6 @@ void OccupancyAccumulator::build(octomap::OcTree& tree) const {
 }
 
 namespace {
-// The octree's child index at depth d (0: the root's children) is bit (15 - d) of x, plus 2 times
-// that of y, plus 4 times that of z. Interleaving the key bits from the top, three per level,
-// gives a code whose ascending order is the depth-first child order.
 // Spreads the 16 bits of v to every third bit (bit b to bit 3 b) by shifts and masks.
 std::uint64_t spread3(std::uint64_t v) {
   v &= 0xffff;
@@ -123,6 +120,9 @@ std::uint64_t spread3(std::uint64_t v) {
   v = (v | (v << 2)) & 0x249249249249ull;
   return v;
 }
+// The octree's child index at depth d (0: the root's children) is bit (15 - d) of x, plus 2 times
+// that of y, plus 4 times that of z. Interleaving the key bits, three per level, gives a code whose
+// ascending order is the depth-first child order.
 std::uint64_t morton(std::uint64_t packed) {
   return spread3(packed >> 32) | (spread3(packed >> 16) << 1) | (spread3(packed) << 2);  // x, y, z
 }
@@ -132,8 +132,10 @@ constexpr int kTreeDepth = 16;
 struct BinaryWriter {
   const std::vector<std::uint64_t>& codes;  // sorted Morton codes; bit 0: occupied
   std::string& out;
+  std::size_t inner_nodes = 0;  // the root and every node above the leaves, one per call
   // The node covering codes[lo, hi) at depth d (all share their first 3 d bits).
   void node(std::size_t lo, std::size_t hi, int d) {
+    ++inner_nodes;
     const int shift = 1 + 3 * (kTreeDepth - 1 - d);  // the child digit at depth d + 1 (above the flag bit)
     std::size_t begin[9];
     std::size_t i = lo;
@@ -146,7 +148,8 @@ struct BinaryWriter {
     const bool leaves = d + 1 == kTreeDepth;
     for (unsigned c = 0; c < 8; ++c) {
       if (begin[c] == begin[c + 1]) continue;  // 00: no such child
-      const unsigned bits = leaves ? ((codes[begin[c]] & 1) ? 2u : 1u) : 3u;  // 01 occupied (high bit), 10 free
+      // The child's two bits (bit 2c first): free leaf 1, occupied leaf 2, inner node 3.
+      const unsigned bits = leaves ? ((codes[begin[c]] & 1) ? 2u : 1u) : 3u;
       bytes[c / 4] = static_cast<unsigned char>(bytes[c / 4] | (bits << (2 * (c % 4))));
     }
     out.push_back(static_cast<char>(bytes[0]));
@@ -168,23 +171,19 @@ OccupancyAccumulator::BinaryMap OccupancyAccumulator::encode_binary() const {
     codes.push_back((morton(key) << 1) | (occupied ? 1u : 0u));
   });
   std::sort(codes.begin(), codes.end());
-  // Nodes: the distinct prefixes at every depth (the root, when there is a leaf, is depth 0).
-  for (std::size_t i = 0; i < codes.size(); ++i) {
-    if (i == 0) {
-      map.nodes += kTreeDepth + 1;
-      continue;
-    }
-    const std::uint64_t diff = (codes[i] ^ codes[i - 1]) >> 1;  // the first differing digit
-    int level = kTreeDepth;  // deepest depth at which they share the node
-    while (level > 0 && (diff >> (3 * (kTreeDepth - level))) != 0) --level;
-    map.nodes += static_cast<std::size_t>(kTreeDepth - level);
+  // The tree is walked first: the header needs its node count (inner nodes and leaves).
+  std::string body;
+  std::size_t inner = 0;
+  if (!codes.empty()) {
+    BinaryWriter w{codes, body};
+    w.node(0, codes.size(), 0);
+    inner = w.inner_nodes;
   }
+  map.nodes = inner + codes.size();
   std::ostringstream header;  // the text OcTree::writeBinaryConst writes
   header << "# Octomap OcTree binary file\n# (feel free to add / change comments, but leave the first line as it is!)\n#\n"
          << "id OcTree\nsize " << map.nodes << "\nres " << resolution_ << "\ndata\n";
-  map.bytes = header.str();
-  map.bytes.reserve(map.bytes.size() + 2 * map.nodes);
-  if (!codes.empty()) BinaryWriter{codes, map.bytes}.node(0, codes.size(), 0);
+  map.bytes = header.str() + body;
   return map;
 }
 
