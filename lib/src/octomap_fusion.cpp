@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "pcdp/pass.hpp"
+#include "pcdp/voxel_blocks.hpp"
 
 namespace pcdp {
 
@@ -20,50 +21,71 @@ octomap::OcTree make_octree(const OctoMapParams& p) {
   return tree;
 }
 
+namespace {
+// The cells of one pass: a bit per cell for free (traversed) and for occupied (an end point).
+struct CellBlock {
+  std::uint64_t free[8] = {}, occupied[8] = {};
+};
+}  // namespace
+
 PassRays cast_pass(const octomap::OcTree& tree, const Pass& pass, const OctoMapParams& p) {
   PassRays out;
-  // Each cell once per pass, in flat sets (1 free, 2 occupied: occupied wins); a small
-  // direct-mapped cache drops most repeats first (neighbouring rays cross the same cells).
-  FlatMap<char> cells(0x5bd1e995u);  // another salt than OccupancyAccumulator's map, which it feeds
-  std::vector<std::uint64_t> cache(4096, ~0ull);
-  const auto pack = [](const octomap::OcTreeKey& k) {
-    return (static_cast<std::uint64_t>(k[0]) << 32) | (static_cast<std::uint64_t>(k[1]) << 16) | k[2];
-  };
-  const auto mark_free = [&](const octomap::OcTreeKey& key) {
-    const std::uint64_t k = pack(key);
-    std::uint64_t& c = cache[(k * 0x9E3779B97F4A7C15ull) >> 52];
-    if (c == k) return;
-    c = k;
-    char& v = cells[k];
-    if (v == 0) v = 1;
-  };
-  octomap::KeyRay ray;
-  std::uint64_t& rays = out.rays;
-  for (std::size_t i = 0; i < pass.size(); ++i) {
-    if (!pass.is_kept(i) || !std::isfinite(pass.x[i]) || !std::isfinite(pass.ox[i])) continue;
-    const octomap::point3d o(static_cast<float>(pass.ox[i]), static_cast<float>(pass.oy[i]), static_cast<float>(pass.oz[i]));
-    octomap::point3d e(static_cast<float>(pass.x[i]), static_cast<float>(pass.y[i]), static_cast<float>(pass.z[i]));
-    bool hit = true;
+  // The ray of return i: its origin and end point, the end cut at max_range (then not a hit).
+  const auto ray_of = [&](std::size_t i, octomap::point3d& o, octomap::point3d& e) {
+    o = octomap::point3d(static_cast<float>(pass.ox[i]), static_cast<float>(pass.oy[i]), static_cast<float>(pass.oz[i]));
+    e = octomap::point3d(static_cast<float>(pass.x[i]), static_cast<float>(pass.y[i]), static_cast<float>(pass.z[i]));
     if (p.max_range > 0 && (e - o).norm() > p.max_range) {
       e = o + (e - o).normalized() * static_cast<float>(p.max_range);
-      hit = false;
+      return false;
     }
-    ++rays;
-    if (tree.computeRayKeys(o, e, ray))
-      for (const auto& k : ray) mark_free(k);
-    octomap::OcTreeKey k;
-    if (tree.coordToKeyChecked(e, k)) {
-      if (hit)
-        cells[pack(k)] = 2;
-      else
-        mark_free(k);  // a cut end is free
-    }
+    return true;
+  };
+  const auto cast = [&](std::size_t i) { return pass.is_kept(i) && std::isfinite(pass.x[i]) && std::isfinite(pass.ox[i]); };
+  // Each cell once per pass, occupied winning, in 8^3 blocks (voxel_blocks.hpp) with a dense
+  // directory over the keys the rays can reach (a ray stays within its ends' keys).
+  VoxelBounds bounds;
+  for (std::size_t i = 0; i < pass.size(); ++i) {
+    if (!cast(i)) continue;
+    octomap::point3d o, e;
+    ray_of(i, o, e);
+    octomap::OcTreeKey ko, ke;
+    if (!tree.coordToKeyChecked(o, ko) || !tree.coordToKeyChecked(e, ke)) continue;  // such a ray casts nothing
+    bounds.add(ko[0], ko[1], ko[2]);
+    bounds.add(ke[0], ke[1], ke[2]);
   }
-  cells.for_each([&](std::uint64_t k, char v) {
-    const octomap::OcTreeKey key(static_cast<octomap::key_type>(k >> 32), static_cast<octomap::key_type>((k >> 16) & 0xffff),
-                                 static_cast<octomap::key_type>(k & 0xffff));
-    (v == 2 ? out.occupied_list : out.free_list).push_back(key);
-  });
+  BlockGrid<CellBlock> cells(bounds, 0x5bd1e995u);  // another salt than OccupancyAccumulator's map, which it feeds
+  BlockCursor<CellBlock> cursor(cells);
+  const auto mark = [&](const octomap::OcTreeKey& k, bool occupied) {
+    CellBlock& b = cursor.at(k[0], k[1], k[2]);
+    const unsigned c = cell_of(k[0], k[1], k[2]);
+    (occupied ? b.occupied : b.free)[c >> 6] |= 1ull << (c & 63);
+  };
+  for (std::size_t i = 0; i < pass.size(); ++i) {
+    if (!cast(i)) continue;
+    octomap::point3d o, e;
+    const bool hit = ray_of(i, o, e);
+    ++out.rays;
+    walk_ray_keys(tree, o, e, [&](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+      cursor.at(x, y, z).free[cell_of(x, y, z) >> 6] |= 1ull << (cell_of(x, y, z) & 63);
+    });
+    octomap::OcTreeKey k;
+    if (tree.coordToKeyChecked(e, k)) mark(k, hit);  // a cut end is free
+  }
+  for (std::size_t b = 0; b < cells.size(); ++b) {
+    const CellBlock& blk = cells[b];
+    std::uint64_t free_only[8];
+    for (int w = 0; w < 8; ++w) free_only[w] = blk.free[w] & ~blk.occupied[w];
+    const BlockPos pos{cells.key(b), 0};
+    const auto emit = [&](std::vector<octomap::OcTreeKey>& list) {
+      return [&list, &pos](unsigned c) {
+        std::uint32_t x, y, z;
+        voxel_of({pos.block, c}, x, y, z);
+        list.emplace_back(static_cast<octomap::key_type>(x), static_cast<octomap::key_type>(y), static_cast<octomap::key_type>(z));
+      };
+    };
+    for_each_bit(free_only, emit(out.free_list));
+    for_each_bit(blk.occupied, emit(out.occupied_list));
+  }
   return out;
 }
 

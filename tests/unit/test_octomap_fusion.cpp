@@ -166,3 +166,56 @@ TEST(OctoMapFusion, EncodedBinaryIsOctoMapsOwnFileForAnyLeaves) {
   EXPECT_TRUE(none.encode_binary().bytes == empty_file.str());
   EXPECT_EQ(none.encode_binary().nodes, 0u);
 }
+
+TEST(OctoMapFusion, RayWalkGivesComputeRayKeysKeysInOrder) {
+  // walk_ray_keys replaces computeRayKeys in cast_pass: every key and its order must agree, on
+  // rays of every kind (random, axis-aligned, diagonal, within one cell, ends on cell
+  // boundaries, one end outside the tree), at two resolutions.
+  for (const double res : {0.1, 0.037}) {
+    octomap::OcTree tree(res);
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> u(-20.0f, 20.0f);
+    std::vector<std::pair<octomap::point3d, octomap::point3d>> rays;
+    for (int i = 0; i < 3000; ++i) rays.push_back({{u(rng), u(rng), u(rng) * 0.1f}, {u(rng), u(rng), u(rng) * 0.1f}});
+    const octomap::point3d o(0.31f, -1.2f, 0.5f);
+    for (int a = 0; a < 3; ++a)
+      for (const float d : {-7.3f, 4.0f}) {
+        octomap::point3d e = o;
+        e(a) += d;
+        rays.push_back({o, e});  // along one axis
+      }
+    rays.push_back({o, o + octomap::point3d(3.0f, 3.0f, 3.0f)});               // through cell corners
+    rays.push_back({o, o + octomap::point3d(0.01f, 0.0f, 0.01f)});             // one cell
+    rays.push_back({{0.0f, 0.0f, 0.0f}, {static_cast<float>(res) * 30, 0.0f, 0.0f}});  // boundary to boundary
+    rays.push_back({o, {1e6f, 0.0f, 0.0f}});                                  // end outside the tree
+    // Cell centre to cell centre by small whole numbers of cells: boundaries crossed at once on
+    // two or three axes, or within rounding of each other, where the tie rule and the arithmetic
+    // decide the cells.
+    std::uniform_int_distribution<int> cell(-12, 12);
+    for (int i = 0; i < 3000; ++i) {
+      const octomap::OcTreeKey k0(static_cast<octomap::key_type>(32768 + cell(rng)), static_cast<octomap::key_type>(32768 + cell(rng)),
+                                  static_cast<octomap::key_type>(32768 + cell(rng)));
+      const octomap::OcTreeKey k1(static_cast<octomap::key_type>(k0[0] + cell(rng)), static_cast<octomap::key_type>(k0[1] + cell(rng)),
+                                  static_cast<octomap::key_type>(k0[2] + cell(rng)));
+      rays.push_back({tree.keyToCoord(k0), tree.keyToCoord(k1)});
+    }
+    octomap::KeyRay expected;
+    std::size_t compared = 0;
+    for (const auto& [a, b] : rays) {
+      std::vector<octomap::OcTreeKey> got;
+      const bool ok = walk_ray_keys(tree, a, b, [&](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+        got.emplace_back(static_cast<octomap::key_type>(x), static_cast<octomap::key_type>(y), static_cast<octomap::key_type>(z));
+      });
+      ASSERT_EQ(ok, tree.computeRayKeys(a, b, expected)) << a << " -> " << b;
+      if (!ok) {
+        EXPECT_TRUE(got.empty());
+        continue;
+      }
+      ASSERT_EQ(got.size(), expected.size()) << a << " -> " << b;
+      std::size_t i = 0;
+      for (const auto& k : expected) ASSERT_EQ(got[i++], k) << a << " -> " << b << " key " << i - 1;
+      compared += got.size();
+    }
+    EXPECT_GT(compared, 3000u * 100u);  // the random rays are long: a real comparison
+  }
+}

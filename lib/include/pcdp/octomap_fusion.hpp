@@ -9,6 +9,9 @@
 // does. This header includes OctoMap; the rest of the library does not need it.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
 #include <set>
 #include <string>
 #include <tuple>
@@ -42,6 +45,61 @@ struct PassRays {
   /// cast_pass, on the worker thread, so the in-order part only updates).
   std::vector<octomap::OcTreeKey> free_list, occupied_list;
 };
+
+/// The free cells of the ray o -> e, exactly those OctoMap's `computeRayKeys` gives and in its
+/// order (tested key for key), passed to f(x, y, z) as they are found instead of stored in a
+/// KeyRay. The same walk (Amanatides & Woo) with the same arithmetic: the direction and length
+/// in float as point3d computes them, the cell boundaries in double; it stops at the end point's
+/// cell or once the next boundary lies beyond the ray's length, whichever comes first, and neither
+/// end's cell is passed unless the walk starts in it (the origin's cell is passed first when the
+/// ends differ). Returns false, passing nothing, when either end is outside the tree.
+template <class F>
+bool walk_ray_keys(const octomap::OcTree& tree, const octomap::point3d& o, const octomap::point3d& e, F&& f) {
+  octomap::OcTreeKey ko, ke;
+  if (!tree.coordToKeyChecked(o, ko) || !tree.coordToKeyChecked(e, ke)) return false;
+  if (ko == ke) return true;
+  octomap::point3d dir = e - o;
+  const float length = static_cast<float>(dir.norm());
+  dir /= length;
+  const double res = tree.getResolution();
+  int step[3];
+  double tmax[3], tdelta[3];
+  for (int a = 0; a < 3; ++a) {
+    step[a] = dir(a) > 0.0f ? 1 : (dir(a) < 0.0f ? -1 : 0);
+    if (step[a] == 0) {
+      tmax[a] = tdelta[a] = std::numeric_limits<double>::max();
+      continue;
+    }
+    // The boundary of the origin's cell in the ray's direction: centre plus half a cell (the half
+    // cell rounded to float, as OctoMap does).
+    const double boundary = tree.keyToCoord(ko[a]) + static_cast<float>(step[a] * res * 0.5);
+    tmax[a] = (boundary - o(a)) / dir(a);
+    tdelta[a] = res / std::fabs(dir(a));
+  }
+  // The walk in scalars (kept in arrays indexed by the stepping axis, every step waits on a store).
+  std::uint32_t x = ko[0], y = ko[1], z = ko[2];
+  const std::uint32_t ex = ke[0], ey = ke[1], ez = ke[2];
+  double tx = tmax[0], ty = tmax[1], tz = tmax[2];
+  const std::uint32_t sx = static_cast<std::uint32_t>(step[0]), sy = static_cast<std::uint32_t>(step[1]),
+                      sz = static_cast<std::uint32_t>(step[2]);  // -1 wraps: keys are unsigned 16-bit
+  f(x, y, z);
+  for (;;) {
+    if (tx < ty && tx < tz) {
+      x = (x + sx) & 0xffffu;
+      tx += tdelta[0];
+    } else if (!(tx < ty) && ty < tz) {
+      y = (y + sy) & 0xffffu;
+      ty += tdelta[1];
+    } else {
+      z = (z + sz) & 0xffffu;
+      tz += tdelta[2];
+    }
+    if (x == ex && y == ey && z == ez) return true;
+    // The next boundary beyond the ray's length: rounding walked past the end's cell; stop here.
+    if (std::min(std::min(tx, ty), tz) > length) return true;
+    f(x, y, z);
+  }
+}
 
 /// Casts the kept returns of a registered pass (the costly part; reads only the tree's key
 /// geometry, so it can run while another thread updates a tree of the same resolution).

@@ -7,15 +7,13 @@
 // Evidence is collected in a prepass over every pass (the pipeline streams the passes twice):
 // each kept return's ray is walked voxel by voxel (3-D DDA) from its own sensor origin up to
 // `margin` short of its end, marking the voxels free for that pass; its end voxel is marked hit.
+// Voxels are kept in 8 x 8 x 8 blocks (voxel_blocks.hpp): the walk's steps stay in cache.
 #pragma once
 
 #include <cstdint>
-#include <unordered_map>
-
-#include "pcdp/flat_map.hpp"
-#include <vector>
 
 #include "pcdp/stage.hpp"
+#include "pcdp/voxel_blocks.hpp"
 
 namespace pcdp {
 
@@ -38,7 +36,7 @@ class ConsistencyEvidence {
   /// The voxels one pass saw: its end points (hit) and the voxels its rays crossed (free).
   struct PassVoxels {
     std::uint64_t bit = 0;
-    std::vector<std::uint64_t> hit, free;
+    VoxelSet hit{0x27d4eb2fu}, free{0x5bd1e995u};  // salts unlike the evidence's own
   };
   /// The evidence of one pass (const: any thread, several passes at once).
   PassVoxels collect(const Pass& pass) const;
@@ -53,9 +51,12 @@ class ConsistencyEvidence {
   struct Voxel {
     std::uint64_t free = 0, hit = 0;  ///< bit (pass mod 64)
   };
-  std::uint64_t key(std::int64_t x, std::int64_t y, std::int64_t z) const;
+  struct Block {
+    Voxel v[512];
+  };
+  const Voxel* find(std::uint32_t x, std::uint32_t y, std::uint32_t z) const;
   ConsistencyParams p_;
-  FlatMap<Voxel> voxels_;
+  BlockGrid<Block> voxels_;
 };
 
 StageInfo check_consistency_stage_info();
