@@ -1,6 +1,7 @@
 #include "pcdp/octomap_fusion.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <sstream>
 #include <string>
@@ -106,29 +107,42 @@ OccupancyAccumulator::OccupancyAccumulator(const OctoMapParams& p) {
   resolution_ = model.getResolution();
 }
 
-void OccupancyAccumulator::update(const octomap::OcTreeKey& k, float delta) {
-  float& v = logodds_[pack(k)];  // a new leaf starts at 0 (OcTreeNode's log-odds)
-  // updateNode's early abort: a leaf at the threshold in the update's direction does not change.
-  if ((delta >= 0 && v >= max_) || (delta <= 0 && v <= min_)) return;
-  v += delta;  // updateNodeLogOdds
-  if (v < min_) {
-    v = min_;
-    return;
-  }
-  if (v > max_) v = max_;
-}
-
 void OccupancyAccumulator::add(const PassRays& r) {
+  BlockCursor<LeafBlock> cursor(leaves_);  // the lists come block by block from cast_pass
+  const auto update = [&](const octomap::OcTreeKey& k, float delta) {
+    LeafBlock& b = cursor.at(k[0], k[1], k[2]);
+    const unsigned c = cell_of(k[0], k[1], k[2]);
+    std::uint64_t& word = b.present[c >> 6];
+    const std::uint64_t bit = 1ull << (c & 63);
+    cells_ += (word & bit) == 0;
+    word |= bit;
+    float& v = b.logodds[c];
+    // updateNode's early abort: a leaf at the threshold in the update's direction does not change.
+    if ((delta >= 0 && v >= max_) || (delta <= 0 && v <= min_)) return;
+    v += delta;  // updateNodeLogOdds
+    if (v < min_) {
+      v = min_;
+      return;
+    }
+    if (v > max_) v = max_;
+  };
   for (const auto& k : r.free_list) update(k, miss_);
   for (const auto& k : r.occupied_list) update(k, hit_);
 }
 
+template <class F>
+void OccupancyAccumulator::for_each_leaf(F&& f) const {
+  for (std::size_t b = 0; b < leaves_.size(); ++b)
+    for_each_bit(leaves_[b].present, [&](unsigned c) {
+      std::uint32_t x, y, z;
+      voxel_of({leaves_.key(b), c}, x, y, z);
+      f(octomap::OcTreeKey(static_cast<octomap::key_type>(x), static_cast<octomap::key_type>(y), static_cast<octomap::key_type>(z)),
+        leaves_[b].logodds[c]);
+    });
+}
+
 void OccupancyAccumulator::build(octomap::OcTree& tree) const {
-  logodds_.for_each([&](std::uint64_t key, float v) {
-    const octomap::OcTreeKey k(static_cast<octomap::key_type>(key >> 32), static_cast<octomap::key_type>((key >> 16) & 0xffff),
-                               static_cast<octomap::key_type>(key & 0xffff));
-    tree.setNodeValue(k, v, true);
-  });
+  for_each_leaf([&](const octomap::OcTreeKey& k, float v) { tree.setNodeValue(k, v, true); });
   tree.updateInnerOccupancy();
 }
 
@@ -145,9 +159,7 @@ std::uint64_t spread3(std::uint64_t v) {
 // The octree's child index at depth d (0: the root's children) is bit (15 - d) of x, plus 2 times
 // that of y, plus 4 times that of z. Interleaving the key bits, three per level, gives a code whose
 // ascending order is the depth-first child order.
-std::uint64_t morton(std::uint64_t packed) {
-  return spread3(packed >> 32) | (spread3(packed >> 16) << 1) | (spread3(packed) << 2);  // x, y, z
-}
+std::uint64_t morton(std::uint64_t x, std::uint64_t y, std::uint64_t z) { return spread3(x) | (spread3(y) << 1) | (spread3(z) << 2); }
 
 constexpr int kTreeDepth = 16;
 
@@ -184,15 +196,33 @@ struct BinaryWriter {
 }  // namespace
 
 OccupancyAccumulator::BinaryMap OccupancyAccumulator::encode_binary() const {
+  // The blocks in Morton order (a few thousand to sort), each block's cells in Morton order (one
+  // table): the leaves' codes come out sorted.
+  std::vector<std::pair<std::uint64_t, std::size_t>> blocks(leaves_.size());
+  for (std::size_t b = 0; b < leaves_.size(); ++b) {
+    std::uint32_t x, y, z;
+    voxel_of({leaves_.key(b), 0}, x, y, z);
+    blocks[b] = {morton(x, y, z), b};  // the block's first cell: the block's code, 9 zero bits below
+  }
+  std::sort(blocks.begin(), blocks.end());
+  static const std::array<std::pair<unsigned, unsigned>, 512> cells_in_order = [] {
+    std::array<std::pair<unsigned, unsigned>, 512> t{};  // (Morton code within the block, cell)
+    for (unsigned c = 0; c < 512; ++c) t[c] = {static_cast<unsigned>(morton(c & 7, (c >> 3) & 7, c >> 6)), c};
+    std::sort(t.begin(), t.end());
+    return t;
+  }();
   std::vector<std::uint64_t> codes;
-  codes.reserve(logodds_.size());
+  codes.reserve(cells_);
   BinaryMap map;
-  logodds_.for_each([&](std::uint64_t key, float v) {
-    const bool occupied = v >= occupied_;  // OcTree::isNodeOccupied
-    map.occupied_leaves += occupied;
-    codes.push_back((morton(key) << 1) | (occupied ? 1u : 0u));
-  });
-  std::sort(codes.begin(), codes.end());
+  for (const auto& [code, b] : blocks) {
+    const LeafBlock& blk = leaves_[b];
+    for (const auto& [m, c] : cells_in_order) {
+      if (!((blk.present[c >> 6] >> (c & 63)) & 1u)) continue;
+      const bool occupied = blk.logodds[c] >= occupied_;  // OcTree::isNodeOccupied
+      map.occupied_leaves += occupied;
+      codes.push_back(((code | m) << 1) | (occupied ? 1u : 0u));
+    }
+  }
   // The tree is walked first: the header needs its node count (inner nodes and leaves).
   std::string body;
   std::size_t inner = 0;

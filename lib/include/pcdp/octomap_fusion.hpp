@@ -18,7 +18,7 @@
 
 #include <octomap/OcTree.h>
 
-#include "pcdp/flat_map.hpp"
+#include "pcdp/voxel_blocks.hpp"
 
 #include <cstdint>
 
@@ -108,18 +108,20 @@ PassRays cast_pass(const octomap::OcTree& tree, const Pass& pass, const OctoMapP
 /// Applies one pass's cells to the tree: free first, then occupied, then the inner nodes.
 void apply_rays(octomap::OcTree& tree, const PassRays& rays);
 
-/// The leaves' log-odds of a run, accumulated pass by pass in a flat map with OctoMap's own
-/// clamped update (OccupancyOcTreeBase::updateNode / updateNodeLogOdds: the same float
-/// arithmetic, the same early abort at the thresholds), and put into a tree once at the end.
-/// Equivalent to apply_rays on every pass, leaf for leaf and byte for byte in map.bt (tested), but
-/// each pass costs a flat-map update per cell instead of a descent of the tree.
+/// The leaves' log-odds of a run, accumulated pass by pass with OctoMap's own clamped update
+/// (OccupancyOcTreeBase::updateNode / updateNodeLogOdds: the same float arithmetic, the same early
+/// abort at the thresholds), and put into a tree once at the end. Equivalent to apply_rays on
+/// every pass, leaf for leaf and byte for byte in map.bt (tested), but each pass costs an update
+/// per cell in a flat block instead of a descent of the tree. The leaves are kept in 8^3 blocks
+/// (voxel_blocks.hpp), which are the octree's subtrees three levels above the leaves: the blocks
+/// in Morton order, each block's cells in Morton order, are the tree's depth-first leaf order.
 class OccupancyAccumulator {
  public:
   explicit OccupancyAccumulator(const OctoMapParams& p);
   void add(const PassRays& rays);  ///< in pass order
   /// Sets every accumulated leaf of `tree` (same resolution and sensor model), then its inner nodes.
   void build(octomap::OcTree& tree) const;
-  std::size_t cells() const { return logodds_.size(); }
+  std::size_t cells() const { return cells_; }
 
   /// The map in OctoMap's compact binary format (.bt), with the tree's node count (root, inner
   /// nodes and leaves, as OcTree::size() counts them) and its occupied leaves.
@@ -128,7 +130,7 @@ class OccupancyAccumulator {
     std::size_t nodes = 0, occupied_leaves = 0;
   };
   /// The .bt file of the accumulated leaves, byte for byte what build() and
-  /// OcTree::writeBinaryConst give (tested), without building the tree: the leaves are sorted in
+  /// OcTree::writeBinaryConst give (tested), without building the tree: the leaves are listed in
   /// Morton order (x, y, z bits interleaved, the octree's child order), and the tree is walked
   /// depth first over that list. Each node is two bytes, two bits per child in child order
   /// (00 absent, 01 free leaf, 10 occupied leaf, 11 inner node, low bit first), then its inner
@@ -136,13 +138,16 @@ class OccupancyAccumulator {
   BinaryMap encode_binary() const;
 
  private:
-  static std::uint64_t pack(const octomap::OcTreeKey& k) {
-    return (static_cast<std::uint64_t>(k[0]) << 32) | (static_cast<std::uint64_t>(k[1]) << 16) | k[2];
-  }
-  void update(const octomap::OcTreeKey& k, float delta);
+  struct LeafBlock {
+    float logodds[512] = {};     // a new leaf starts at 0 (OcTreeNode's log-odds)
+    std::uint64_t present[8] = {};  // which cells are leaves
+  };
+  template <class F>
+  void for_each_leaf(F&& f) const;  // f(key, log-odds), blocks in the order first touched
   float hit_ = 0, miss_ = 0, min_ = 0, max_ = 0, occupied_ = 0;
   double resolution_ = 0.1;
-  FlatMap<float> logodds_;
+  std::size_t cells_ = 0;
+  BlockGrid<LeafBlock> leaves_;
 };
 
 /// cast_pass + apply_rays. Returns the number of rays cast.
