@@ -227,19 +227,24 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
         sum.passes.push_back({pass.source, pass.size(), pass.line_count(), h[0]});
       });
   // finish() touches only its own stage (and the sink, guarded here), so with threads the stages
-  // write their products at the same time; errors are reported in stage order.
+  // write their products at the same time, and the parts of a stage that writes several (see
+  // Stage::finish_parts); errors are reported in stage order.
   LockedSink sink(out);
-  detail::ordered_parallel<int>(
-      stages_.size(), sum.threads, stages_.size(),
-      [&](std::size_t s) {
+  std::vector<std::pair<std::size_t, std::size_t>> parts;  // (stage, part)
+  for (std::size_t s = 0; s < stages_.size(); ++s)
+    for (std::size_t p = 0; p < stages_[s]->finish_parts(); ++p) parts.emplace_back(s, p);
+  detail::ordered_parallel<StageReport>(
+      parts.size(), sum.threads, parts.size(),
+      [&](std::size_t t) {
+        StageReport rep;
         const auto t0 = std::chrono::steady_clock::now();
-        stages_[s]->finish(sink, sum.stages[s]);
+        stages_[parts[t].first]->finish_part(parts[t].second, sink, rep);
         const double dt = seconds_since(t0);
-        sum.stages[s].seconds += dt;
-        if (dt > 1e-4) sum.stages[s].metrics["finish_seconds"] += dt;  // products written at the end
-        return 0;
+        rep.seconds += dt;
+        if (dt > 1e-4) rep.metrics["finish_seconds"] += dt;  // products written at the end
+        return rep;
       },
-      [](std::size_t, int) {});
+      [&](std::size_t t, StageReport&& rep) { merge_report(sum.stages[parts[t].first], rep); });
   returns.close();
   cloud.close();
   if (returns.points() != sum.input_returns)

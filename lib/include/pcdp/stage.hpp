@@ -72,6 +72,12 @@ class Stage {
   virtual void process(Pass& pass, StageReport& report) = 0;
   /// After the last pass: write products, add run-level metrics.
   virtual void finish(OutputSink& /*sink*/, StageReport& /*report*/) {}
+  /// Stages whose products can be written independently split finish() into parts; with
+  /// threads, the pipeline runs the parts of every stage at once, each with its own report,
+  /// merged in order. Parts of one stage may run concurrently: they must not change shared
+  /// state. By default one part, finish() itself.
+  virtual std::size_t finish_parts() const { return 1; }
+  virtual void finish_part(std::size_t /*part*/, OutputSink& sink, StageReport& report) { finish(sink, report); }
   /// Stages that need evidence from every pass before labelling any (check_consistency) return
   /// true; the pipeline then first streams every pass through the stages before them and hands it
   /// to prepass(), then runs the whole chain as usual.

@@ -15,6 +15,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <deque>
 #include <vector>
 
 #include "pcdp/flat_map.hpp"
@@ -76,7 +77,8 @@ class BlockGrid {
   }
 
   /// The block with block coordinates (voxel coordinates / 8), inserted value-initialised if
-  /// absent. The reference lasts until the next insert.
+  /// absent. References stay valid as blocks are added (the blocks are never moved: large blocks
+  /// copied on every growth of a vector cost 2 % of a run).
   Block& block(std::uint32_t bx, std::uint32_t by, std::uint32_t bz) {
     const std::uint64_t key = pack(bx, by, bz);
     if (key == last_key_) return blocks_[last_];
@@ -111,10 +113,6 @@ class BlockGrid {
   /// The i-th block's key (as block_pos gives it) and the block; i in the order first touched.
   std::uint64_t key(std::size_t i) const { return keys_[i]; }
   const Block& operator[](std::size_t i) const { return blocks_[i]; }
-  void reserve(std::size_t n) {
-    keys_.reserve(n);
-    blocks_.reserve(n);
-  }
 
  private:
   static constexpr std::size_t kOutside = ~std::size_t{0};
@@ -138,15 +136,14 @@ class BlockGrid {
   std::vector<std::uint32_t> dir_;  // dense directory over the bounds (empty: hash only)
   std::uint32_t lo_[3] = {0, 0, 0}, n_[3] = {0, 0, 0};
   std::vector<std::uint64_t> keys_;
-  std::vector<Block> blocks_;
+  std::deque<Block> blocks_;
   std::uint64_t last_key_ = FlatMap<std::uint32_t>::kEmpty;  // never a block key (bits 63-60 clear)
   std::size_t last_ = 0;
 };
 
 /// Finds blocks of one grid, keeping the current block in the cursor itself: a walk that stays
 /// in one block reaches it without a lookup. Use it as a local variable (then it lives in
-/// registers; a block pointer kept in the grid would be reloaded after every store to a block),
-/// and insert into the grid through one cursor at a time (an insert moves the blocks).
+/// registers; a block pointer kept in the grid would be reloaded after every store to a block).
 template <class Block>
 class BlockCursor {
  public:

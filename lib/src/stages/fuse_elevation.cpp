@@ -61,11 +61,21 @@ class FuseElevationStage final : public Stage {
     for (const auto& p : static_cast<Work&>(*work).points) grid_.add(p.x, p.y, p.z, p.var, p.pass);
   }
   void process(Pass& pass, StageReport&) override { fuse_pass(grid_, pass, params_, fallback_var_); }
+  // Two products, written at once when the run has threads: elevation.tif (and the report's
+  // cell count), then elevation.png. Both only read the grid.
+  std::size_t finish_parts() const override { return params_.png ? 2 : 1; }
   void finish(OutputSink& sink, StageReport& report) override {
+    for (std::size_t p = 0; p < finish_parts(); ++p) finish_part(p, sink, report);
+  }
+  void finish_part(std::size_t part, OutputSink& sink, StageReport& report) override {
     const auto t0 = std::chrono::steady_clock::now();
+    if (part == 1) {
+      io::write_elevation_png(grid_, sink.staged_path("elevation.png"));
+      report.metrics["write_seconds"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      return;
+    }
     io::write_elevation_geotiff(grid_, sink.staged_path("elevation.tif"));
-    if (params_.png) io::write_elevation_png(grid_, sink.staged_path("elevation.png"));
-    report.metrics["write_seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    report.metrics["write_seconds"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::size_t fused = 0;
     grid_.for_each([&](std::int64_t, std::int64_t, const ElevationCell& c) {
       double e, v;
