@@ -1,7 +1,7 @@
 // Batched OctoMap insertion with a sensor origin per return (the laser position at its line).
 //
-// Per pass: every kept return casts a ray from its own origin (OctoMap's computeRayKeys, the same
-// keys insertPointCloud uses); the free keys of all its rays and the occupied keys of all its
+// Per pass: every kept return casts a ray from its own origin (walk_ray_keys: the keys of OctoMap's
+// computeRayKeys, which insertPointCloud uses); the free keys of all its rays and the occupied keys of all its
 // endpoints are collected for the whole pass, and occupied wins over free in the same batch before
 // one update. Inserting line by line instead lets the free rays of later lines erase the
 // endpoints of earlier ones (a ground return seen at grazing incidence lies on the next line's
