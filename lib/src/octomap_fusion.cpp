@@ -56,9 +56,9 @@ PassRays cast_pass(const octomap::OcTree& tree, const Pass& pass, const OctoMapP
   }
   BlockGrid<CellBlock> cells(bounds, 0x5bd1e995u);  // another salt than OccupancyAccumulator's map, which it feeds
   BlockCursor<CellBlock> cursor(cells);
-  const auto mark = [&](const octomap::OcTreeKey& k, bool occupied) {
-    CellBlock& b = cursor.at(k[0], k[1], k[2]);
-    const unsigned c = cell_of(k[0], k[1], k[2]);
+  const auto mark = [&](std::uint32_t x, std::uint32_t y, std::uint32_t z, bool occupied) {
+    CellBlock& b = cursor.at(x, y, z);
+    const unsigned c = cell_of(x, y, z);
     (occupied ? b.occupied : b.free)[c >> 6] |= 1ull << (c & 63);
   };
   for (std::size_t i = 0; i < pass.size(); ++i) {
@@ -66,26 +66,21 @@ PassRays cast_pass(const octomap::OcTree& tree, const Pass& pass, const OctoMapP
     octomap::point3d o, e;
     const bool hit = ray_of(i, o, e);
     ++out.rays;
-    walk_ray_keys(tree, o, e, [&](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
-      cursor.at(x, y, z).free[cell_of(x, y, z) >> 6] |= 1ull << (cell_of(x, y, z) & 63);
-    });
+    walk_ray_keys(tree, o, e, [&](std::uint32_t x, std::uint32_t y, std::uint32_t z) { mark(x, y, z, false); });
     octomap::OcTreeKey k;
-    if (tree.coordToKeyChecked(e, k)) mark(k, hit);  // a cut end is free
+    if (tree.coordToKeyChecked(e, k)) mark(k[0], k[1], k[2], hit);  // a cut end is free
   }
   for (std::size_t b = 0; b < cells.size(); ++b) {
     const CellBlock& blk = cells[b];
     std::uint64_t free_only[8];
     for (int w = 0; w < 8; ++w) free_only[w] = blk.free[w] & ~blk.occupied[w];
-    const BlockPos pos{cells.key(b), 0};
-    const auto emit = [&](std::vector<octomap::OcTreeKey>& list) {
-      return [&list, &pos](unsigned c) {
-        std::uint32_t x, y, z;
-        voxel_of({pos.block, c}, x, y, z);
-        list.emplace_back(static_cast<octomap::key_type>(x), static_cast<octomap::key_type>(y), static_cast<octomap::key_type>(z));
-      };
+    const auto push = [&](std::vector<octomap::OcTreeKey>& list, unsigned c) {
+      std::uint32_t x, y, z;
+      voxel_of({cells.key(b), c}, x, y, z);
+      list.emplace_back(static_cast<octomap::key_type>(x), static_cast<octomap::key_type>(y), static_cast<octomap::key_type>(z));
     };
-    for_each_bit(free_only, emit(out.free_list));
-    for_each_bit(blk.occupied, emit(out.occupied_list));
+    for_each_bit(free_only, [&](unsigned c) { push(out.free_list, c); });
+    for_each_bit(blk.occupied, [&](unsigned c) { push(out.occupied_list, c); });
   }
   return out;
 }
