@@ -81,16 +81,13 @@ class BlockGrid {
   /// copied on every growth of a vector cost 2 % of a run).
   Block& block(std::uint32_t bx, std::uint32_t by, std::uint32_t bz) {
     const std::uint64_t key = pack(bx, by, bz);
-    if (key == last_key_) return blocks_[last_];
     std::uint32_t& slot = slot_of(bx, by, bz, key);  // position + 1; 0: new
     if (slot == 0) {
       blocks_.emplace_back();
       keys_.push_back(key);
       slot = static_cast<std::uint32_t>(blocks_.size());
     }
-    last_key_ = key;
-    last_ = slot - 1;
-    return blocks_[last_];
+    return blocks_[slot - 1];
   }
   Block& block(std::uint64_t key) {
     return block(static_cast<std::uint32_t>(key >> 42), static_cast<std::uint32_t>((key >> 21) & 0x1fffff),
@@ -136,9 +133,7 @@ class BlockGrid {
   std::vector<std::uint32_t> dir_;  // dense directory over the bounds (empty: hash only)
   std::uint32_t lo_[3] = {0, 0, 0}, n_[3] = {0, 0, 0};
   std::vector<std::uint64_t> keys_;
-  std::deque<Block> blocks_;
-  std::uint64_t last_key_ = FlatMap<std::uint32_t>::kEmpty;  // never a block key (bits 63-60 clear)
-  std::size_t last_ = 0;
+  std::deque<Block> blocks_;  // the last block touched is remembered by a BlockCursor, not here
 };
 
 /// Finds blocks of one grid, keeping the current block in the cursor itself: a walk that stays

@@ -81,13 +81,13 @@ ConsistencyEvidence::PassVoxels ConsistencyEvidence::collect(const Pass& pass) c
   }
   out.hit = VoxelSet(bounds, 0x27d4eb2fu);
   out.free = VoxelSet(bounds, 0x5bd1e995u);
-  VoxelSet::Cursor free(out.free);
+  VoxelSet::Cursor hit(out.hit), free(out.free);
   for (std::size_t i = 0; i < pass.size(); ++i) {
     if (!pass.is_kept(i) || !std::isfinite(pass.x[i]) || !std::isfinite(pass.ox[i])) continue;
     const double o[3] = {pass.ox[i], pass.oy[i], pass.oz[i]}, e[3] = {pass.x[i], pass.y[i], pass.z[i]};
     double d[3] = {e[0] - o[0], e[1] - o[1], e[2] - o[2]};
     const double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    out.hit.insert(voxel_coord(e[0], res), voxel_coord(e[1], res), voxel_coord(e[2], res));
+    hit.insert(voxel_coord(e[0], res), voxel_coord(e[1], res), voxel_coord(e[2], res));
     if (len <= p_.margin || len > p_.max_range) continue;
     for (double& c : d) c /= len;
     walk_voxels(o, d, len - p_.margin, res, [&](std::int64_t x, std::int64_t y, std::int64_t z) {
