@@ -11,6 +11,8 @@ EncoderTrack::EncoderTrack(std::vector<double> stamps, std::vector<double> angle
     : t_(std::move(stamps)), a_(std::move(angles)) {
   assert(t_.size() == a_.size());
   for (double& t : t_) t -= latency;
+  // Each bracket's slope once, not a division per query.
+  for (std::size_t k = 0; k + 1 < t_.size(); ++k) slope_.push_back((a_[k + 1] - a_[k]) / (t_[k + 1] - t_[k]));
 }
 
 std::size_t EncoderTrack::bracket(double stamp, std::size_t hint) const {
@@ -33,14 +35,13 @@ double EncoderTrack::angle_at(double stamp, std::size_t& hint) const {
   if (n == 0) return 0.0;
   if (n == 1) return a_[0];
   const std::size_t k = hint = bracket(stamp, hint);
-  const double s = (stamp - t_[k]) / (t_[k + 1] - t_[k]);
-  return a_[k] + s * (a_[k + 1] - a_[k]);
+  return a_[k] + (stamp - t_[k]) * slope_[k];
 }
 
 double EncoderTrack::rate_at(double stamp, std::size_t& hint) const {
   if (t_.size() < 2) return 0.0;
   const std::size_t k = hint = bracket(stamp, hint);
-  return (a_[k + 1] - a_[k]) / (t_[k + 1] - t_[k]);
+  return slope_[k];
 }
 
 EncoderTrack encoder_track(const Pass& pass, double latency) {

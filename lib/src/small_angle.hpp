@@ -25,4 +25,13 @@ inline double cos_small(double x) {
                               (1.0 - x2 * (1.0 / 30.0) * (1.0 - x2 * (1.0 / 56.0) * (1.0 - x2 * (1.0 / 90.0)))));
 }
 
+/// 1 - cos(x) for |x| <= kSmallAngle: x^2/2! - x^4/4! + ... - x^12/12! (no cancellation; the
+/// first omitted term is under 4e-18 of the result)
+inline double vers_small(double x) {
+  const double x2 = x * x;
+  return x2 * 0.5 *
+         (1.0 - x2 * (1.0 / 12.0) *
+                    (1.0 - x2 * (1.0 / 30.0) * (1.0 - x2 * (1.0 / 56.0) * (1.0 - x2 * (1.0 / 90.0) * (1.0 - x2 * (1.0 / 132.0))))));
+}
+
 }  // namespace pcdp::detail

@@ -171,4 +171,63 @@ Eigen::Isometry3d PoseTrack::at(double stamp, std::size_t& hint) const {
   return T;
 }
 
+SegmentMotion::Weights SegmentMotion::weights(double stamp) const {
+  Weights w;
+  w.s = (stamp - stamp0) * inv_duration;
+  const double a = w.s * angle;
+  if (std::fabs(a) <= 1e-3) {
+    // Nearby poses (the usual case) turn by far less than kSmallAngle: three terms of each series
+    // suffice, the first omitted term being under 2e-22 of the result (a^6 / 7!, a^6 / 20160).
+    const double a2 = a * a;
+    w.sin_a = a * (1.0 - a2 * (1.0 / 6.0) * (1.0 - a2 * (1.0 / 20.0)));
+    w.vers_a = a2 * 0.5 * (1.0 - a2 * (1.0 / 12.0) * (1.0 - a2 * (1.0 / 30.0)));
+  } else if (std::fabs(a) <= detail::kSmallAngle) {
+    w.sin_a = detail::sin_small(a);
+    w.vers_a = detail::vers_small(a);
+  } else {
+    const double h = std::sin(0.5 * a);
+    w.sin_a = std::sin(a);
+    w.vers_a = 2.0 * h * h;  // 1 - cos(a) without cancellation
+  }
+  return w;
+}
+
+SegmentMotion SegmentMotion::then(const Eigen::Isometry3d& T) const {
+  SegmentMotion m = *this;
+  m.R0 = R0 * T.linear();
+  m.B = B * T.linear();
+  m.C = C * T.linear();
+  m.t0 = R0 * T.translation() + t0;
+  m.tB = B * T.translation() + tB;
+  m.tC = C * T.translation() + tC;
+  return m;
+}
+
+SegmentMotion PoseTrack::motion(std::size_t k) const {
+  assert(!samples_.empty());
+  SegmentMotion m;
+  const PoseSample& a = samples_[std::min(k, samples_.size() - 1)];
+  m.stamp0 = a.stamp;
+  m.R0 = a.orientation.toRotationMatrix();
+  m.t0 = a.position;
+  if (samples_.size() < 2) return m;  // one pose: fixed (duration 1, angle 0, no motion)
+  const PoseSample& b = samples_[k + 1];
+  m.duration = b.stamp - a.stamp;
+  m.inv_duration = 1.0 / m.duration;
+  m.dt = b.position - a.position;
+  // The rotation from a to b, the shorter way round (as slerp takes it): axis n, angle phi.
+  Eigen::Quaterniond rel = a.orientation.conjugate() * b.orientation;
+  if (rel.w() < 0.0) rel.coeffs() = -rel.coeffs();
+  const double nv = rel.vec().norm();
+  if (nv > 0.0) {
+    m.angle = 2.0 * std::atan2(nv, rel.w());
+    const Eigen::Vector3d n = rel.vec() / nv;
+    Eigen::Matrix3d K;
+    K << 0.0, -n.z(), n.y(), n.z(), 0.0, -n.x(), -n.y(), n.x(), 0.0;
+    m.B = m.R0 * K;
+    m.C = m.B * K;
+  }
+  return m;
+}
+
 }  // namespace pcdp

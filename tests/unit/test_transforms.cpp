@@ -176,21 +176,79 @@ TEST(PoseTrack, CachedSlerpIsEigensSlerpToRounding) {
   }
 }
 
+TEST(PoseTrack, SegmentMotionIsAtToRounding) {
+  // motion(k) (Rodrigues' form of the segment's slerp, used by register's hot loop) must give
+  // at()'s pose to rounding, alone and with a fixed transform folded in (T_M_V(t) T_V_N), over
+  // segments that turn by nothing, by small angles (both series) and by large ones (std::sin), both
+  // quaternion signs, and at the segment ends.
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<PoseSample> v;
+  for (int k = 0; k < 120; ++k) {
+    PoseSample p;
+    p.stamp = 0.02 * k + (k % 7 == 0 ? 0.004 : 0.0);
+    p.position = Eigen::Vector3d(3 * u(rng), 3 * u(rng), u(rng));
+    // No turn; tiny, short-series (up to 1e-3 rad), series and std::sin turns.
+    const double steps[5] = {0.0, 1e-7, 2e-3, 0.04, 0.9};
+    const double step = steps[k % 5];
+    Eigen::Quaterniond q = k ? v.back().orientation * Eigen::Quaterniond(Eigen::AngleAxisd(step * u(rng), Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized()))
+                             : Eigen::Quaterniond(Eigen::AngleAxisd(2.0, Eigen::Vector3d(1, 2, 3).normalized()));
+    if (k % 3 == 0) q.coeffs() = -q.coeffs();
+    p.orientation = q.normalized();
+    v.push_back(p);
+  }
+  const PoseTrack track(v);
+  const Eigen::Isometry3d T_V_N = make_transform({0.3, -0.1, 0.8}, {0.02, -0.3, 0.1}, RpyOrder::kXyz);
+  std::size_t hint = 0;
+  double worst_r = 0.0, worst_t = 0.0;
+  for (std::size_t k = 0; k + 1 < v.size(); ++k) {
+    const SegmentMotion m = track.motion(k), mn = m.then(T_V_N);
+    for (double f : {0.0, 0.013, 0.25, 0.5, 0.77, 1.0}) {
+      const double stamp = v[k].stamp + f * (v[k + 1].stamp - v[k].stamp);
+      hint = k;
+      const Eigen::Isometry3d T = track.at(stamp, hint);
+      const SegmentMotion::Weights w = m.weights(stamp);
+      worst_r = std::max(worst_r, (m.rotation(w) - T.linear()).cwiseAbs().maxCoeff());
+      worst_t = std::max(worst_t, (m.translation(w) - T.translation()).cwiseAbs().maxCoeff());
+      const Eigen::Isometry3d TN = T * T_V_N;
+      worst_r = std::max(worst_r, (mn.rotation(w) - TN.linear()).cwiseAbs().maxCoeff());
+      worst_t = std::max(worst_t, (mn.translation(w) - TN.translation()).cwiseAbs().maxCoeff());
+    }
+  }
+  // Entries of magnitude <= 1 and translations of a few metres: a few units in the last place.
+  // A wrong axis sign, a missing (1 - cos) term or the longer arc would be off by 1e-3 or more.
+  EXPECT_LT(worst_r, 2e-15);
+  EXPECT_LT(worst_t, 1e-14);
+  // A single pose is that pose, whatever the stamp.
+  const PoseTrack one({v[3]});
+  const SegmentMotion m1 = one.motion(0);
+  const SegmentMotion::Weights w1 = m1.weights(123.0);
+  EXPECT_TRUE(m1.rotation(w1).isApprox(v[3].orientation.toRotationMatrix(), 1e-15));
+  EXPECT_TRUE(m1.translation(w1) == v[3].position);
+}
+
 TEST(SmallAngle, SeriesEqualTheLibraryFunctionsToRoundingUpToTheirLimit) {
   // sin_small and cos_small replace std::sin / std::cos below kSmallAngle in the hot loops
   // (slerp, the nod's step): they must agree to a few ulp over the whole range, including the
   // limit where the first omitted term is largest.
-  double worst_sin = 0, worst_cos = 0;
+  double worst_sin = 0, worst_cos = 0, worst_vers = 0;
   for (int k = -20000; k <= 20000; ++k) {
     const double x = detail::kSmallAngle * k / 20000.0;
     if (x != 0.0) worst_sin = std::max(worst_sin, std::fabs(detail::sin_small(x) - std::sin(x)) / std::fabs(std::sin(x)));
     worst_cos = std::max(worst_cos, std::fabs(detail::cos_small(x) - std::cos(x)));
+    // 1 - cos(x) = 2 sin^2(x / 2) without cancellation, relative: the series keeps full precision
+    // where 1 - cos_small(x) would keep only a few digits.
+    const double h = std::sin(0.5 * x), vers = 2.0 * h * h;
+    if (x != 0.0) worst_vers = std::max(worst_vers, std::fabs(detail::vers_small(x) - vers) / vers);
   }
   EXPECT_LT(worst_sin, 4.5e-16);  // 2 ulp relative
   EXPECT_LT(worst_cos, 2.3e-16);  // 2 ulp of values near 1
+  EXPECT_LT(worst_vers, 9e-16);   // 4 ulp relative (the reference itself rounds three times)
   EXPECT_EQ(detail::sin_small(0.0), 0.0);
   EXPECT_EQ(detail::cos_small(0.0), 1.0);
   // Odd and even, as the functions they replace.
   EXPECT_EQ(detail::sin_small(-0.07), -detail::sin_small(0.07));
   EXPECT_EQ(detail::cos_small(-0.07), detail::cos_small(0.07));
+  EXPECT_EQ(detail::vers_small(0.0), 0.0);
+  EXPECT_EQ(detail::vers_small(-0.07), detail::vers_small(0.07));
 }

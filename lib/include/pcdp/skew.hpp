@@ -40,7 +40,7 @@ class EncoderTrack {
 
  private:
   std::size_t bracket(double stamp, std::size_t hint) const;
-  std::vector<double> t_, a_;
+  std::vector<double> t_, a_, slope_;  // slope_[k]: rad/s over bracket [k, k + 1]
 };
 
 /// The track of a pass: reading of line k = its `nod`, at the stamp of its last return.

@@ -66,6 +66,31 @@ struct PoseSample {
 /// Linear in position, spherical (slerp, shortest arc) in orientation; s in [0, 1].
 PoseSample interpolate(const PoseSample& a, const PoseSample& b, double s);
 
+/// The motion of one pose segment in closed form, for loops that evaluate it at many stamps:
+///   R(s) = R0 + sin(a) B + (1 - cos(a)) C,   t(s) = t0 + s dt + sin(a) tB + (1 - cos(a)) tC,
+/// with s = (stamp - stamp0) / duration (as a product with inv_duration) and a = s * angle. Slerp between two orientations turns
+/// about one fixed axis n at a constant rate, so Rodrigues' formula gives it with B = R0 [n]x and
+/// C = R0 [n]x^2: per stamp two sines by their series and 18 multiply-adds, instead of a slerp, a
+/// quaternion-to-matrix conversion and (for T_M_V T_V_N) a matrix product. A fixed transform on
+/// the right folds into the matrices (then()). Equal to PoseTrack::at() to rounding
+/// (tests/unit/test_transforms.cpp).
+struct SegmentMotion {
+  double stamp0 = 0.0, duration = 1.0, inv_duration = 1.0, angle = 0.0;
+  Eigen::Matrix3d R0 = Eigen::Matrix3d::Identity(), B = Eigen::Matrix3d::Zero(), C = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d t0 = Eigen::Vector3d::Zero(), dt = Eigen::Vector3d::Zero(), tB = Eigen::Vector3d::Zero(),
+                  tC = Eigen::Vector3d::Zero();
+
+  /// The weights of a stamp: the segment fraction s, sin(a) and 1 - cos(a).
+  struct Weights {
+    double s = 0.0, sin_a = 0.0, vers_a = 0.0;
+  };
+  Weights weights(double stamp) const;
+  Eigen::Matrix3d rotation(const Weights& w) const { return R0 + w.sin_a * B + w.vers_a * C; }
+  Eigen::Vector3d translation(const Weights& w) const { return t0 + w.s * dt + w.sin_a * tB + w.vers_a * tC; }
+  /// The motion of T(stamp) * T_fixed (e.g. T_M_N = T_M_V(stamp) T_V_N).
+  SegmentMotion then(const Eigen::Isometry3d& T_fixed) const;
+};
+
 /// A time-ordered sequence of poses T_M_V(t), interpolated at any stamp inside its span.
 class PoseTrack {
  public:
@@ -91,6 +116,8 @@ class PoseTrack {
   std::size_t bracket(double stamp, std::size_t hint) const;
   /// Time between the two samples bracketing a covered `stamp` (0 with a single sample).
   double gap_at(double stamp, std::size_t& hint) const;
+  /// Segment k (samples k and k + 1) in closed form; with a single sample, that pose, fixed.
+  SegmentMotion motion(std::size_t k) const;
 
  private:
   std::vector<PoseSample> samples_;

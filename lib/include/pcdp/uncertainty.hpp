@@ -5,6 +5,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstddef>
 
 #include "pcdp/transforms.hpp"
 
@@ -43,6 +44,43 @@ Eigen::Matrix3d point_covariance_fast(double r, double cos_nu, double sin_nu, do
                                       const Eigen::Matrix3d& R_MV, const Eigen::Isometry3d& T_V_N,
                                       const Eigen::Matrix3d& R_MN, const Eigen::Vector3d& Rp, RpyOrder order,
                                       const PointSigmas& s);
+
+/// The pose axis innermost in the RPY product, as a column of R_MV: yaw's (column 2) for xyz,
+/// roll's (column 0) for zyx.
+inline int inner_pose_axis(RpyOrder order) { return order == RpyOrder::kXyz ? 2 : 0; }
+
+/// point_covariance_fast for many returns at once. add() takes what register has for a return
+/// (the range, the bearing's and nod's cosines and sines, R_MN, the inner pose axis
+/// R_MV.col(inner_pose_axis(order)), Rp, the nod's sigma) and where its six entries go (xx xy xz
+/// yy yz zz); compute() fills them all. The arithmetic runs over arrays in single precision (the
+/// covariance is stored as float), which the compiler turns into vector instructions (4 returns
+/// per instruction with SSE2), every return through the same instructions whatever its place in
+/// the batch. Equal to point_covariance to a few 1e-7 of the matrix's norm
+/// (tests/unit/test_uncertainty.cpp).
+class CovarianceBatch {
+ public:
+  static constexpr std::size_t kCapacity = 256;
+  /// `s.nod` is not used: each return brings its own.
+  CovarianceBatch(RpyOrder order, const PointSigmas& s);
+  /// Queues one return; false (nothing queued) at gimbal lock, where the middle pose axis is
+  /// undefined: use point_covariance_fast for that return.
+  bool add(double r, double cos_nu, double sin_nu, double cos_eta, double sin_eta, const Eigen::Matrix3d& R_MN,
+           const Eigen::Vector3d& inner, const Eigen::Vector3d& Rp, double sigma_nod, float* out);
+  bool full() const { return n_ == kCapacity; }
+  std::size_t size() const { return n_; }
+  /// Computes and writes the queued returns' covariances, then empties the batch.
+  void compute();
+
+ private:
+  enum Input { kR, kCn, kSn, kCe, kSe, kVarNod, kR00, kR10, kR20, kR01, kR11, kR21, kR02, kR12, kR22,
+               kIx, kIy, kIz, kPx, kPy, kPz, kInputs };
+  float in_[kInputs][kCapacity];
+  float res_[6][kCapacity];
+  float* out_[kCapacity];
+  std::size_t n_ = 0;
+  bool xyz_;
+  float var_range_, var_bearing_, var_outer_, var_middle_, var_inner_, var_pos_[3];
+};
 
 /// 1-sigma of a uniform quantization step q: q / sqrt(12).
 inline double quantization_sigma(double q) { return q / 3.4641016151377544; }

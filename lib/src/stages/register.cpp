@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <limits>
+#include <memory>
 
 #include "pcdp/pass.hpp"
 #include "pcdp/skew.hpp"
@@ -45,7 +46,6 @@ void register_pass(Pass& pass, const RegisterParams& params, const SensorParams&
   sig.position = Eigen::Vector3d::Constant(pose_sigma.position);
   sig.rpy = Eigen::Vector3d::Constant(pose_sigma.rpy);
   const double enc_var = std::pow(quantization_sigma(sensor.encoder_resolution), 2);
-  const Eigen::Isometry3d identity = Eigen::Isometry3d::Identity();
 
   constexpr std::size_t kBearingCache = 4096;  // power of two; indexed by beam
   struct CachedBearing {
@@ -75,6 +75,19 @@ void register_pass(Pass& pass, const RegisterParams& params, const SensorParams&
       s = std::sin(eta);
     }
   };
+  // The pose of the current pose segment in closed form (SegmentMotion: T_M_V and T_M_N =
+  // T_M_V T_V_N as R0 + sin(a) B + (1 - cos(a)) C), rebuilt when a return falls in another
+  // segment. Like the nod's base, it depends only on the segment, so a streamed line gets the
+  // same values. Without poses, T_M_V is the identity.
+  constexpr std::size_t kNoSegment = std::numeric_limits<std::size_t>::max();
+  std::size_t seg_k = kNoSegment;
+  SegmentMotion mv, mn = SegmentMotion{}.then(T_V_N);
+  const SegmentMotion::Weights fixed;  // s = 0, no turn: R0 and t0
+  // The nod's sigma depends on the encoder bracket's rate only: computed once per bracket.
+  std::size_t sig_k = kNoSegment;
+  // Covariances are computed in batches, several returns per vector instruction.
+  const int ia = inner_pose_axis(order);
+  const std::unique_ptr<CovarianceBatch> batch = params.covariance ? std::make_unique<CovarianceBatch>(order, sig) : nullptr;
   for (std::size_t i = 0; i < n; ++i) {
     const double stamp = pass.stamp[i];
     const double eta = params.skew_correction ? track.angle_at(stamp, enc_hint) : static_cast<double>(pass.nod[i]);
@@ -92,11 +105,18 @@ void register_pass(Pass& pass, const RegisterParams& params, const SensorParams&
     }
 
     bool has_pose = true;
-    Eigen::Isometry3d T_M_V = identity;
     if (poses) {
-      has_pose = poses->covers(stamp) &&
-                 (params.max_pose_gap <= 0.0 || poses->gap_at(stamp, pose_hint) <= params.max_pose_gap);
-      if (has_pose) T_M_V = poses->at(stamp, pose_hint);
+      has_pose = poses->covers(stamp);
+      if (has_pose) {
+        const std::size_t k = poses->size() > 1 ? (pose_hint = poses->bracket(stamp, pose_hint)) : 0;
+        if (k != seg_k) {
+          mv = poses->motion(k);
+          mn = mv.then(T_V_N);
+          seg_k = k;
+        }
+        // The segment's duration is the gap between the two poses around the stamp.
+        has_pose = params.max_pose_gap <= 0.0 || poses->size() < 2 || mv.duration <= params.max_pose_gap;
+      }
     }
 
     if (!has_return) {
@@ -108,12 +128,13 @@ void register_pass(Pass& pass, const RegisterParams& params, const SensorParams&
     }
     if (!has_pose) continue;
 
-    const Eigen::Isometry3d T_M_N = T_M_V * T_V_N;
-    const Eigen::Vector3d o = T_M_N.translation();
+    const SegmentMotion::Weights w = poses ? mn.weights(stamp) : fixed;
+    const Eigen::Vector3d o = mn.translation(w);
     pass.ox[i] = o.x();
     pass.oy[i] = o.y();
     pass.oz[i] = o.z();
     if (!has_return) continue;
+    const Eigen::Matrix3d R_MN = mn.rotation(w);
     // The bearing's sine and cosine repeat from line to line for a beam: computed once per value.
     const float bearing = pass.bearing[i];
     double cn, sn;
@@ -128,24 +149,33 @@ void register_pass(Pass& pass, const RegisterParams& params, const SensorParams&
     }
     double ce, se;
     nod_sincos(eta, eta_base, ce, se);
-    const Eigen::Vector3d p = T_M_N * Eigen::Vector3d(rc * cn * ce, rc * sn, rc * cn * se);  // nod_frame_point
+    const Eigen::Vector3d p = R_MN * Eigen::Vector3d(rc * cn * ce, rc * sn, rc * cn * se) + o;  // nod_frame_point
     pass.x[i] = p.x();
     pass.y[i] = p.y();
     pass.z[i] = p.z();
     if (params.covariance) {
-      const double omega = sensor.encoder_latency_sigma > 0 ? track.rate_at(stamp, rate_hint) : 0.0;
-      sig.nod = std::sqrt(enc_var + std::pow(omega * sensor.encoder_latency_sigma, 2));
-      const Eigen::Matrix3d C = point_covariance_fast(rc, cn, sn, ce, se, T_M_V.linear(), T_V_N, T_M_N.linear(),
-                                                      p - T_M_V.translation(), order, sig);
+      if (!(sig_k == enc_hint)) {
+        const double omega = sensor.encoder_latency_sigma > 0 ? track.rate_at(stamp, rate_hint) : 0.0;
+        sig.nod = std::sqrt(enc_var + std::pow(omega * sensor.encoder_latency_sigma, 2));
+        // Without skew correction the hint does not follow the stamp: no caching then.
+        sig_k = params.skew_correction ? enc_hint : kNoSegment;
+      }
+      const Eigen::Vector3d inner = mv.R0.col(ia) + w.sin_a * mv.B.col(ia) + w.vers_a * mv.C.col(ia);
+      const Eigen::Vector3d Rp = p - mv.translation(w);
       float* c = &pass.cov[6 * i];
-      c[0] = static_cast<float>(C(0, 0));
-      c[1] = static_cast<float>(C(0, 1));
-      c[2] = static_cast<float>(C(0, 2));
-      c[3] = static_cast<float>(C(1, 1));
-      c[4] = static_cast<float>(C(1, 2));
-      c[5] = static_cast<float>(C(2, 2));
+      if (!batch->add(rc, cn, sn, ce, se, R_MN, inner, Rp, sig.nod, c)) {  // gimbal lock: the angle path
+        const Eigen::Matrix3d C = point_covariance_fast(rc, cn, sn, ce, se, mv.rotation(w), T_V_N, R_MN, Rp, order, sig);
+        c[0] = static_cast<float>(C(0, 0));
+        c[1] = static_cast<float>(C(0, 1));
+        c[2] = static_cast<float>(C(0, 2));
+        c[3] = static_cast<float>(C(1, 1));
+        c[4] = static_cast<float>(C(1, 2));
+        c[5] = static_cast<float>(C(2, 2));
+      }
+      if (batch->full()) batch->compute();
     }
   }
+  if (batch) batch->compute();
 }
 
 std::vector<std::string> blind_runs(const Pass& pass, int min_lines) {
