@@ -42,29 +42,59 @@ void ElevationCell::surface(std::uint32_t min_support, double& w, double& wz) co
   }
 }
 
-void ElevationGrid::add(double x, double y, double z, double var_z, std::int32_t pass) {
-  ElevationCell& c = cells_[key(cell_index(x), cell_index(y))];
-  HeightBand b;
-  b.index = static_cast<std::int32_t>(std::floor(z / band_));
-  b.w = 1.0 / var_z;
-  b.wz = z / var_z;
-  b.count = 1;
-  c.absorb(b);
-  ++c.count;
-  if (pass != c.last_pass) {
-    ++c.passes;
-    c.last_pass = pass;
+ElevationCell& ElevationGrid::touch(std::uint64_t k) {
+  std::uint32_t& slot = index_[k];
+  if (slot == 0) {  // new: the index holds place + 1, so that 0 (its default) means absent
+    if (size_ == chunks_.size() * kChunk) chunks_.emplace_back();
+    chunks_[size_ / kChunk].keys[size_ % kChunk] = k;
+    slot = static_cast<std::uint32_t>(++size_);
   }
-  c.zmin = std::min(c.zmin, static_cast<float>(z));
-  c.zmax = std::max(c.zmax, static_cast<float>(z));
+  return cell(slot - 1);
+}
+
+ElevationSample ElevationGrid::sample(double x, double y, double z, double var_z, std::int32_t pass) const {
+  ElevationSample s;
+  s.key = key(cell_index(x), cell_index(y));
+  s.band = static_cast<std::int32_t>(std::floor(z / band_));
+  s.pass = pass;
+  s.w = 1.0 / var_z;
+  s.wz = z / var_z;
+  s.z = static_cast<float>(z);
+  return s;
+}
+
+void ElevationGrid::add(const ElevationSample* s, std::size_t n) {
+  std::uint64_t last_key = FlatMap<std::uint32_t>::kEmpty;  // never a cell's key
+  ElevationCell* at = nullptr;  // cells do not move: the pointer outlives later insertions
+  for (std::size_t i = 0; i < n; ++i) {
+    if (s[i].key != last_key) {
+      last_key = s[i].key;
+      at = &touch(last_key);
+    }
+    ElevationCell& c = *at;
+    HeightBand b;
+    b.index = s[i].band;
+    b.w = s[i].w;
+    b.wz = s[i].wz;
+    b.count = 1;
+    c.absorb(b);
+    ++c.count;
+    if (s[i].pass != c.last_pass) {
+      ++c.passes;
+      c.last_pass = s[i].pass;
+    }
+    c.zmin = std::min(c.zmin, s[i].z);
+    c.zmax = std::max(c.zmax, s[i].z);
+  }
 }
 
 void ElevationGrid::merge(const ElevationGrid& other) {
   if (std::fabs(other.res_ - res_) > 1e-12 || std::fabs(other.band_ - band_) > 1e-12)
     throw std::invalid_argument("elevation grids differ in resolution or band and cannot be merged");
-  for (const auto& [k, o] : other.cells_) {
+  for (std::size_t i = 0; i < other.size_; ++i) {
+    const ElevationCell& o = other.cell(i);
     if (o.empty()) continue;
-    ElevationCell& c = cells_[k];
+    ElevationCell& c = touch(other.chunks_[i / kChunk].keys[i % kChunk]);
     for (const auto& b : o.bands) c.absorb(b);
     c.count += o.count;
     c.passes += o.passes;
@@ -73,7 +103,7 @@ void ElevationGrid::merge(const ElevationGrid& other) {
   }
 }
 
-void ElevationGrid::set_cell(std::int64_t ix, std::int64_t iy, const ElevationCell& c) { cells_[key(ix, iy)] = c; }
+void ElevationGrid::set_cell(std::int64_t ix, std::int64_t iy, const ElevationCell& c) { touch(key(ix, iy)) = c; }
 
 bool ElevationGrid::surface(const ElevationCell& c, double& elevation, double& variance) const {
   double w, wz;
@@ -85,14 +115,15 @@ bool ElevationGrid::surface(const ElevationCell& c, double& elevation, double& v
 }
 
 const ElevationCell* ElevationGrid::find(std::int64_t ix, std::int64_t iy) const {
-  const auto it = cells_.find(key(ix, iy));
-  return it == cells_.end() ? nullptr : &it->second;
+  const std::uint32_t* slot = index_.find(key(ix, iy));
+  return slot ? &cell(*slot - 1) : nullptr;
 }
 
 bool ElevationGrid::bounds(std::int64_t& ix0, std::int64_t& iy0, std::int64_t& ix1, std::int64_t& iy1) const {
   bool any = false;
-  for (const auto& [k, c] : cells_) {
-    if (c.empty()) continue;
+  for (std::size_t i = 0; i < size_; ++i) {
+    if (cell(i).empty()) continue;
+    const std::uint64_t k = chunks_[i / kChunk].keys[i % kChunk];
     const std::int64_t x = unkey_x(k), y = unkey_y(k);
     if (!any) {
       ix0 = ix1 = x;

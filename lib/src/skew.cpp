@@ -30,7 +30,7 @@ std::size_t EncoderTrack::bracket(double stamp, std::size_t hint) const {
   return k;
 }
 
-double EncoderTrack::angle_at(double stamp, std::size_t& hint) const {
+double EncoderTrack::angle_search(double stamp, std::size_t& hint) const {
   const std::size_t n = t_.size();
   if (n == 0) return 0.0;
   if (n == 1) return a_[0];

@@ -117,9 +117,9 @@ void PoseTrack::add_segment(std::size_t k) {  // the segment from sample k - 1 t
   seg_.push_back(g);
 }
 
-std::size_t PoseTrack::bracket(double stamp, std::size_t hint) const {
+std::size_t PoseTrack::bracket_search(double stamp, std::size_t hint) const {
   const std::size_t n = samples_.size();
-  // Fast path: the same or the next bracket as last time.
+  // The same (checked inline by bracket()) or the next bracket as last time, else a search.
   for (std::size_t i = hint; i < std::min(hint + 2, n - 1); ++i) {
     if (stamp >= samples_[i].stamp && stamp <= samples_[i + 1].stamp) return i;
   }
@@ -171,17 +171,8 @@ Eigen::Isometry3d PoseTrack::at(double stamp, std::size_t& hint) const {
   return T;
 }
 
-SegmentMotion::Weights SegmentMotion::weights(double stamp) const {
-  Weights w;
-  w.s = (stamp - stamp0) * inv_duration;
-  const double a = w.s * angle;
-  if (std::fabs(a) <= 1e-3) {
-    // Nearby poses (the usual case) turn by far less than kSmallAngle: three terms of each series
-    // suffice, the first omitted term being under 2e-22 of the result (a^6 / 7!, a^6 / 20160).
-    const double a2 = a * a;
-    w.sin_a = a * (1.0 - a2 * (1.0 / 6.0) * (1.0 - a2 * (1.0 / 20.0)));
-    w.vers_a = a2 * 0.5 * (1.0 - a2 * (1.0 / 12.0) * (1.0 - a2 * (1.0 / 30.0)));
-  } else if (std::fabs(a) <= detail::kSmallAngle) {
+void SegmentMotion::turn(double a, Weights& w) {
+  if (std::fabs(a) <= detail::kSmallAngle) {
     w.sin_a = detail::sin_small(a);
     w.vers_a = detail::vers_small(a);
   } else {
@@ -189,7 +180,6 @@ SegmentMotion::Weights SegmentMotion::weights(double stamp) const {
     w.sin_a = std::sin(a);
     w.vers_a = 2.0 * h * h;  // 1 - cos(a) without cancellation
   }
-  return w;
 }
 
 SegmentMotion SegmentMotion::then(const Eigen::Isometry3d& T) const {

@@ -124,21 +124,6 @@ CovarianceBatch::CovarianceBatch(RpyOrder order, const PointSigmas& s) : xyz_(or
   for (int k = 0; k < 3; ++k) var_pos_[k] = static_cast<float>(s.position[k] * s.position[k]);
 }
 
-bool CovarianceBatch::add(double r, double cn, double sn, double ce, double se, const Eigen::Matrix3d& R_MN,
-                          const Eigen::Vector3d& inner, const Eigen::Vector3d& Rp, double sigma_nod, float* out) {
-  // The middle axis is outer x inner; its length is the sine of the angle between them.
-  const double m2 = xyz_ ? inner.y() * inner.y() + inner.z() * inner.z() : inner.x() * inner.x() + inner.y() * inner.y();
-  if (m2 < 1e-12) return false;  // point_covariance_fast's gimbal-lock test (|middle| < 1e-6)
-  const std::size_t j = n_++;
-  const double v[kInputs] = {r,          cn,         sn,         ce,         se,         sigma_nod * sigma_nod,
-                             R_MN(0, 0), R_MN(1, 0), R_MN(2, 0), R_MN(0, 1), R_MN(1, 1), R_MN(2, 1),
-                             R_MN(0, 2), R_MN(1, 2), R_MN(2, 2), inner.x(),  inner.y(),  inner.z(),
-                             Rp.x(),     Rp.y(),     Rp.z()};
-  for (int k = 0; k < kInputs; ++k) in_[k][j] = static_cast<float>(v[k]);
-  out_[j] = out;
-  return true;
-}
-
 void CovarianceBatch::compute() {
   // point_covariance_fast's sum of rank-1 terms, lane by lane. The loop runs over whole groups of
   // 16 lanes, so every return goes through the vector body (none through a scalar remainder).

@@ -2,7 +2,10 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <random>
+#include <stdexcept>
+#include <vector>
 
 #include "pcdp/elevation.hpp"
 #include "pcdp/io/geotiff.hpp"
@@ -139,4 +142,77 @@ TEST(Elevation, GeoTiffRoundTripAndGdalinfo) {
     EXPECT_NE(info.find(band), std::string::npos) << band;
   EXPECT_NE(info.find("NoData Value=nan"), std::string::npos);
   EXPECT_NE(info.find("Type=Float32"), std::string::npos);
+}
+
+TEST(Elevation, SamplesAddedInOneBatchEqualPointsAddedOneByOne) {
+  // Cells on both sides of zero and far out (negative indices, the 31-bit key's offset) and runs
+  // of points in one cell (the batch's last-cell shortcut), in two passes.
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> xy(-3000.0, 3000.0), z(-1.0, 1.0), near(-0.04, 0.04);
+  ElevationGrid one(0.1, 0.05), batch(0.1, 0.05);
+  std::vector<ElevationSample> s;
+  for (int pass = 0; pass < 2; ++pass) {
+    s.clear();
+    for (int i = 0; i < 5000; ++i) {
+      const double x = xy(rng), y = i % 3 == 0 ? -0.05 : xy(rng);
+      for (int k = 0; k < 1 + i % 4; ++k) {  // 1-4 points in a row in the same cell or next door
+        const double px = x + near(rng), py = y + near(rng), pz = z(rng), var = 1e-4 * (1 + k);
+        one.add(px, py, pz, var, pass);
+        s.push_back(batch.sample(px, py, pz, var, pass));
+      }
+    }
+    batch.add(s.data(), s.size());
+  }
+  ASSERT_EQ(one.size(), batch.size());
+  ASSERT_GT(one.size(), 9000u);
+  std::size_t negative = 0;
+  one.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
+    negative += ix < 0 && iy < 0;
+    const ElevationCell* d = batch.find(ix, iy);
+    ASSERT_NE(d, nullptr) << ix << "," << iy;
+    EXPECT_EQ(c.count, d->count);
+    EXPECT_EQ(c.passes, d->passes);
+    for (int k = 0; k < ElevationCell::kBands; ++k) {
+      EXPECT_EQ(c.bands[k].index, d->bands[k].index);
+      EXPECT_EQ(c.bands[k].w, d->bands[k].w);  // same sums in the same order: to the bit
+      EXPECT_EQ(c.bands[k].wz, d->bands[k].wz);
+    }
+    EXPECT_EQ(c.zmin, d->zmin);
+    EXPECT_EQ(c.zmax, d->zmax);
+  });
+  EXPECT_GT(negative, 1000u);
+  // A cell's indices come back from for_each as they went in, far from the origin too.
+  ElevationGrid far(0.001, 0.05);
+  far.add(-1.0e6, 1.0e6 - 0.0005, 0.0, 1e-4, 0);
+  std::int64_t fx = 0, fy = 0;
+  far.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell&) {
+    fx = ix;
+    fy = iy;
+  });
+  EXPECT_EQ(fx, far.cell_index(-1.0e6));
+  EXPECT_EQ(fy, far.cell_index(1.0e6 - 0.0005));
+  EXPECT_NE(far.find(fx, fy), nullptr);
+  EXPECT_EQ(far.find(fx + 1, fy), nullptr);
+}
+
+TEST(Elevation, DeflateLevelChangesTheFileNotTheGrid) {
+  const std::vector<Pass> passes = registered_sample_like_passes();
+  FuseElevationParams prm;
+  ElevationGrid g(prm.resolution, prm.band);
+  for (const auto& p : passes) fuse_pass(g, p, prm, 1e-4);
+  const std::string dir = test::fresh_dir();
+  io::write_elevation_geotiff(g, dir + "/fast.tif", 1);
+  io::write_elevation_geotiff(g, dir + "/small.tif", 12);
+  const auto size = [](const std::string& f) {
+    std::FILE* fp = std::fopen(f.c_str(), "rb");
+    std::fseek(fp, 0, SEEK_END);
+    const long n = std::ftell(fp);
+    std::fclose(fp);
+    return n;
+  };
+  EXPECT_LT(size(dir + "/small.tif"), size(dir + "/fast.tif"));
+  expect_same(io::read_elevation_geotiff(dir + "/fast.tif"), io::read_elevation_geotiff(dir + "/small.tif"), 0.0);
+  EXPECT_THROW(io::write_elevation_geotiff(g, dir + "/bad.tif", 13), std::invalid_argument);
+  EXPECT_THROW(io::write_elevation_geotiff(g, dir + "/bad.tif", 0), std::invalid_argument);
+  EXPECT_FALSE(std::ifstream(dir + "/bad.tif").good());
 }

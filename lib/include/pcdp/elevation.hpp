@@ -20,10 +20,12 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <deque>
 #include <limits>
 #include <string>
-#include <unordered_map>
 #include <vector>
+
+#include "pcdp/flat_map.hpp"
 
 namespace pcdp {
 
@@ -50,6 +52,15 @@ struct ElevationCell {
   void surface(std::uint32_t min_support, double& w, double& wz) const;
 };
 
+/// One point ready to fuse: its cell key, height band and information-form sums (computed off
+/// the grid, e.g. on a worker thread, so that adding it is a lookup and a few additions).
+struct ElevationSample {
+  std::uint64_t key = 0;
+  std::int32_t band = 0, pass = 0;
+  double w = 0, wz = 0;  ///< 1/var and z/var
+  float z = 0;
+};
+
 class ElevationGrid {
  public:
   ElevationGrid(double resolution, double band, std::uint32_t min_support = 2)
@@ -61,7 +72,15 @@ class ElevationGrid {
 
   /// Fuses one point (map frame, vertical variance var_z > 0) seen in pass `pass` (passes are
   /// added in increasing order).
-  void add(double x, double y, double z, double var_z, std::int32_t pass);
+  void add(double x, double y, double z, double var_z, std::int32_t pass) {
+    const ElevationSample s = sample(x, y, z, var_z, pass);
+    add(&s, 1);
+  }
+  /// The sample add() fuses for this point (pure: any thread).
+  ElevationSample sample(double x, double y, double z, double var_z, std::int32_t pass) const;
+  /// Fuses samples in order (the same as add() on each point, with fewer lookups: consecutive
+  /// samples of a scan line often share a cell).
+  void add(const ElevationSample* s, std::size_t n);
   /// Merges another grid (same resolution and band; extents may differ): exact and order-free.
   void merge(const ElevationGrid& other);
   /// Sets a cell's state directly (reading a grid back from a GeoTIFF).
@@ -73,24 +92,47 @@ class ElevationGrid {
   std::int64_t cell_index(double v) const { return static_cast<std::int64_t>(std::floor(v / res_)); }
   double cell_center(std::int64_t i) const { return (static_cast<double>(i) + 0.5) * res_; }
   const ElevationCell* find(std::int64_t ix, std::int64_t iy) const;
-  std::size_t size() const { return cells_.size(); }
+  std::size_t size() const { return size_; }  ///< cells that hold points
   /// Inclusive index bounds of the occupied cells; false when empty.
   bool bounds(std::int64_t& ix0, std::int64_t& iy0, std::int64_t& ix1, std::int64_t& iy1) const;
+  /// f(ix, iy, cell) for every cell, in the order the cells were first touched.
   template <typename F>
   void for_each(F f) const {
-    for (const auto& [k, c] : cells_) f(unkey_x(k), unkey_y(k), c);
+    for (std::size_t i = 0; i < size_; ++i) {
+      const Chunk& ch = chunks_[i / kChunk];
+      const std::uint64_t k = ch.keys[i % kChunk];
+      f(unkey_x(k), unkey_y(k), ch.cells[i % kChunk]);
+    }
   }
 
  private:
+  // Cell indices are kept to 31 bits each (+-2^30 cells: +-107,000 km at 0.1 m, +-1,070 km at
+  // 1 mm) and wrap beyond, so that a key is a 62-bit number (FlatMap's keys must not be ~0).
+  static constexpr std::int64_t kOffset = std::int64_t{1} << 30;
+  static constexpr std::uint64_t kMask = (std::uint64_t{1} << 31) - 1;
   static std::uint64_t key(std::int64_t ix, std::int64_t iy) {
-    return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(ix)) << 32) | static_cast<std::uint32_t>(iy);
+    return ((static_cast<std::uint64_t>(ix + kOffset) & kMask) << 31) | (static_cast<std::uint64_t>(iy + kOffset) & kMask);
   }
-  static std::int64_t unkey_x(std::uint64_t k) { return static_cast<std::int32_t>(k >> 32); }
-  static std::int64_t unkey_y(std::uint64_t k) { return static_cast<std::int32_t>(k & 0xffffffffu); }
+  static std::int64_t unkey_x(std::uint64_t k) { return static_cast<std::int64_t>(k >> 31) - kOffset; }
+  static std::int64_t unkey_y(std::uint64_t k) { return static_cast<std::int64_t>(k & kMask) - kOffset; }
+  /// The cell of `k`, appended empty if absent.
+  ElevationCell& touch(std::uint64_t k);
+  ElevationCell& cell(std::size_t i) { return chunks_[i / kChunk].cells[i % kChunk]; }
+  const ElevationCell& cell(std::size_t i) const { return chunks_[i / kChunk].cells[i % kChunk]; }
 
   double res_, band_;
   std::uint32_t min_support_;
-  std::unordered_map<std::uint64_t, ElevationCell> cells_;
+  // The cells in the order they were first touched, in chunks of kChunk (30 kB: below malloc's
+  // mmap threshold, so a new grid reuses freed memory instead of faulting in fresh pages, and
+  // growth never moves a cell), with a hash from key to place: a lookup probes 8-byte keys.
+  static constexpr std::size_t kChunk = 256;
+  struct Chunk {
+    std::array<ElevationCell, kChunk> cells;
+    std::array<std::uint64_t, kChunk> keys;
+  };
+  std::deque<Chunk> chunks_;
+  std::size_t size_ = 0;
+  FlatMap<std::uint32_t> index_{0x2545f491u};
 };
 
 }  // namespace pcdp

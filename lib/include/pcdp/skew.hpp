@@ -31,7 +31,11 @@ class EncoderTrack {
 
   /// The nod angle at `stamp`. `hint` carries the last bracket between calls (O(1) for sorted
   /// queries). With a single reading, that reading (no rate can be estimated).
-  double angle_at(double stamp, std::size_t& hint) const;
+  double angle_at(double stamp, std::size_t& hint) const {
+    // Inline for the usual case, a stamp in the hint's own bracket (every return of a line).
+    if (hint + 1 < t_.size() && stamp >= t_[hint] && stamp <= t_[hint + 1]) return a_[hint] + (stamp - t_[hint]) * slope_[hint];
+    return angle_search(stamp, hint);
+  }
   /// The local nod rate (rad/s) at `stamp`: the slope of the bracketing readings (0 with one).
   double rate_at(double stamp, std::size_t& hint) const;
   std::size_t size() const { return t_.size(); }
@@ -40,6 +44,7 @@ class EncoderTrack {
 
  private:
   std::size_t bracket(double stamp, std::size_t hint) const;
+  double angle_search(double stamp, std::size_t& hint) const;
   std::vector<double> t_, a_, slope_;  // slope_[k]: rad/s over bracket [k, k + 1]
 };
 

@@ -8,6 +8,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -84,7 +85,24 @@ struct SegmentMotion {
   struct Weights {
     double s = 0.0, sin_a = 0.0, vers_a = 0.0;
   };
-  Weights weights(double stamp) const;
+  Weights weights(double stamp) const {
+    Weights w;
+    w.s = (stamp - stamp0) * inv_duration;
+    const double a = w.s * angle;
+    if (std::fabs(a) <= 1e-3) {
+      // Nearby poses (the usual case, inline: it runs for every return) turn by far less than
+      // kSmallAngle: three terms of each series suffice, the first omitted term being under
+      // 2e-22 of the result (a^6 / 7!, a^6 / 20160).
+      const double a2 = a * a;
+      w.sin_a = a * (1.0 - a2 * (1.0 / 6.0) * (1.0 - a2 * (1.0 / 20.0)));
+      w.vers_a = a2 * 0.5 * (1.0 - a2 * (1.0 / 12.0) * (1.0 - a2 * (1.0 / 30.0)));
+      return w;
+    }
+    turn(a, w);
+    return w;
+  }
+  /// sin(a) and 1 - cos(a) of a larger turn (weights' other cases).
+  static void turn(double a, Weights& w);
   Eigen::Matrix3d rotation(const Weights& w) const { return R0 + w.sin_a * B + w.vers_a * C; }
   Eigen::Vector3d translation(const Weights& w) const { return t0 + w.s * dt + w.sin_a * tB + w.vers_a * tC; }
   /// The motion of T(stamp) * T_fixed (e.g. T_M_N = T_M_V(stamp) T_V_N).
@@ -113,13 +131,18 @@ class PoseTrack {
   /// (pass the same variable for a sequence of near-monotonic stamps: O(1) per query).
   Eigen::Isometry3d at(double stamp, std::size_t& hint) const;
   /// Index k of the samples bracketing a covered `stamp`: samples[k].stamp <= stamp <= samples[k+1].stamp.
-  std::size_t bracket(double stamp, std::size_t hint) const;
+  std::size_t bracket(double stamp, std::size_t hint) const {
+    // Inline for the usual case, the hint's own bracket (every return between two poses).
+    if (hint + 1 < samples_.size() && stamp >= samples_[hint].stamp && stamp <= samples_[hint + 1].stamp) return hint;
+    return bracket_search(stamp, hint);
+  }
   /// Time between the two samples bracketing a covered `stamp` (0 with a single sample).
   double gap_at(double stamp, std::size_t& hint) const;
   /// Segment k (samples k and k + 1) in closed form; with a single sample, that pose, fixed.
   SegmentMotion motion(std::size_t k) const;
 
  private:
+  std::size_t bracket_search(double stamp, std::size_t hint) const;
   std::vector<PoseSample> samples_;
   /// Per segment [k, k+1]: the slerp angle and its sine (Eigen's slerp recomputes both, with an
   /// acos and a sin, at every call; at() does the same arithmetic with these).

@@ -64,8 +64,21 @@ class CovarianceBatch {
   CovarianceBatch(RpyOrder order, const PointSigmas& s);
   /// Queues one return; false (nothing queued) at gimbal lock, where the middle pose axis is
   /// undefined: use point_covariance_fast for that return.
+  /// (Inline: it runs for every return.)
   bool add(double r, double cos_nu, double sin_nu, double cos_eta, double sin_eta, const Eigen::Matrix3d& R_MN,
-           const Eigen::Vector3d& inner, const Eigen::Vector3d& Rp, double sigma_nod, float* out);
+           const Eigen::Vector3d& inner, const Eigen::Vector3d& Rp, double sigma_nod, float* out) {
+    // The middle axis is outer x inner; its length is the sine of the angle between them.
+    const double m2 = xyz_ ? inner.y() * inner.y() + inner.z() * inner.z() : inner.x() * inner.x() + inner.y() * inner.y();
+    if (m2 < 1e-12) return false;  // point_covariance_fast's gimbal-lock test (|middle| < 1e-6)
+    const std::size_t j = n_++;
+    const double v[kInputs] = {r,          cos_nu,     sin_nu,     cos_eta,    sin_eta,    sigma_nod * sigma_nod,
+                               R_MN(0, 0), R_MN(1, 0), R_MN(2, 0), R_MN(0, 1), R_MN(1, 1), R_MN(2, 1),
+                               R_MN(0, 2), R_MN(1, 2), R_MN(2, 2), inner.x(),  inner.y(),  inner.z(),
+                               Rp.x(),     Rp.y(),     Rp.z()};
+    for (int k = 0; k < kInputs; ++k) in_[k][j] = static_cast<float>(v[k]);
+    out_[j] = out;
+    return true;
+  }
   bool full() const { return n_ == kCapacity; }
   std::size_t size() const { return n_; }
   /// Computes and writes the queued returns' covariances, then empties the batch.

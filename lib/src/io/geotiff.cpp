@@ -9,6 +9,8 @@
 #include <cstdio>
 #include <limits>
 #include <mutex>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "pcdp/errors.hpp"
@@ -42,7 +44,9 @@ void rename_into_place(const std::string& tmp, const std::string& path) {
 }
 }  // namespace
 
-void write_elevation_geotiff(const ElevationGrid& grid, const std::string& path) {
+void write_elevation_geotiff(const ElevationGrid& grid, const std::string& path, int deflate_level) {
+  if (deflate_level < 1 || deflate_level > 12)
+    throw std::invalid_argument("DEFLATE level " + std::to_string(deflate_level) + " is outside 1 .. 12");
   gdal_init();
   std::int64_t ix0 = 0, iy0 = 0, ix1 = 0, iy1 = 0;
   if (!grid.bounds(ix0, iy0, ix1, iy1)) ix0 = iy0 = ix1 = iy1 = 0;
@@ -52,6 +56,7 @@ void write_elevation_geotiff(const ElevationGrid& grid, const std::string& path)
   const std::string tmp = path + ".tmp-gdal.tif";
   char** opts = nullptr;
   opts = CSLSetNameValue(opts, "COMPRESS", "DEFLATE");
+  opts = CSLSetNameValue(opts, "ZLEVEL", std::to_string(deflate_level).c_str());
   opts = CSLSetNameValue(opts, "INTERLEAVE", "BAND");
   GDALDataset* ds = drv->Create(tmp.c_str(), nx, ny, kBands, GDT_Float32, opts);
   CSLDestroy(opts);
@@ -59,7 +64,6 @@ void write_elevation_geotiff(const ElevationGrid& grid, const std::string& path)
   const double res = grid.resolution();
   double gt[6] = {static_cast<double>(ix0) * res, res, 0.0, static_cast<double>(iy1 + 1) * res, 0.0, -res};
   ds->SetGeoTransform(gt);
-  ds->SetMetadataItem("PCDP_RESOLUTION", std::to_string(res).c_str());
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.17g", grid.band());
   ds->SetMetadataItem("PCDP_BAND", buf);
@@ -67,40 +71,37 @@ void write_elevation_geotiff(const ElevationGrid& grid, const std::string& path)
   ds->SetMetadataItem("PCDP_RESOLUTION", buf);
   ds->SetMetadataItem("PCDP_MIN_SUPPORT", std::to_string(grid.min_support()).c_str());
   ds->SetMetadataItem("PCDP_CONTRACT", "bands 1-5 per DESIGN.md; 6 passes; 7-22 the four highest height bands (exact merge state)");
+  // Every band in one visit of the cells (the surface is computed once per cell, not per band).
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  std::vector<float> data(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny));
+  const std::size_t plane = static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny);
+  std::vector<float> data(plane * kBands, nan);
+  grid.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
+    if (c.empty()) return;
+    float* v = data.data() + static_cast<std::size_t>(iy1 - iy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(ix - ix0);
+    double e = 0, var = 0;
+    if (grid.surface(c, e, var)) {
+      v[0] = static_cast<float>(e);
+      v[plane] = static_cast<float>(var);
+    }
+    v[2 * plane] = static_cast<float>(c.count);
+    v[3 * plane] = c.zmin;
+    v[4 * plane] = c.zmax;
+    v[5 * plane] = static_cast<float>(c.passes);
+    for (int k = 0; k < ElevationCell::kBands; ++k) {
+      const HeightBand& hb = c.bands[static_cast<std::size_t>(k)];
+      if (hb.empty()) continue;
+      float* h = v + static_cast<std::size_t>(kFixed + kPerBand * k) * plane;
+      h[0] = static_cast<float>(hb.index);
+      h[plane] = static_cast<float>(hb.w);
+      h[2 * plane] = static_cast<float>(hb.wz / hb.w);
+      h[3 * plane] = static_cast<float>(hb.count);
+    }
+  });
   for (int b = 0; b < kBands; ++b) {
-    std::fill(data.begin(), data.end(), nan);
-    grid.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
-      if (c.empty()) return;
-      const std::size_t col = static_cast<std::size_t>(ix - ix0), row = static_cast<std::size_t>(iy1 - iy);
-      float& v = data[row * static_cast<std::size_t>(nx) + col];
-      double e = 0, var = 0;
-      const bool fused = grid.surface(c, e, var);
-      if (b >= kFixed) {
-        const HeightBand& hb = c.bands[static_cast<std::size_t>((b - kFixed) / kPerBand)];
-        if (hb.empty()) return;
-        switch ((b - kFixed) % kPerBand) {
-          case 0: v = static_cast<float>(hb.index); break;
-          case 1: v = static_cast<float>(hb.w); break;
-          case 2: v = static_cast<float>(hb.wz / hb.w); break;
-          default: v = static_cast<float>(hb.count); break;
-        }
-        return;
-      }
-      switch (b) {
-        case 0: v = fused ? static_cast<float>(e) : nan; break;
-        case 1: v = fused ? static_cast<float>(var) : nan; break;
-        case 2: v = static_cast<float>(c.count); break;
-        case 3: v = c.zmin; break;
-        case 4: v = c.zmax; break;
-        default: v = static_cast<float>(c.passes); break;
-      }
-    });
     GDALRasterBand* band = ds->GetRasterBand(b + 1);
     band->SetDescription(band_name(b).c_str());
     band->SetNoDataValue(std::numeric_limits<double>::quiet_NaN());
-    if (band->RasterIO(GF_Write, 0, 0, nx, ny, data.data(), nx, ny, GDT_Float32, 0, 0) != CE_None) {
+    if (band->RasterIO(GF_Write, 0, 0, nx, ny, data.data() + static_cast<std::size_t>(b) * plane, nx, ny, GDT_Float32, 0, 0) != CE_None) {
       GDALClose(ds);
       std::remove(tmp.c_str());
       throw std::runtime_error(path + ": GDAL write failed");
@@ -300,7 +301,11 @@ void write_elevation_png(const ElevationGrid& grid, const std::string& path) {
     if (ds->GetRasterBand(k + 1)->RasterIO(GF_Write, 0, 0, W, H, chans[k]->data(), W, H, GDT_Byte, 0, 0) != CE_None)
       throw std::runtime_error(path + ": GDAL raster write failed");
   const std::string tmp = path + ".tmp-gdal.png";
-  GDALDataset* out = png->CreateCopy(tmp.c_str(), ds, FALSE, nullptr, nullptr, nullptr);
+  // zlib level 3, not libpng's 6: the picture is written in half the time for a file about a
+  // fifth larger (measured on the sample: 52.8 against 62.8 kB); it is a preview, not an archive.
+  char** opts = CSLSetNameValue(nullptr, "ZLEVEL", "3");
+  GDALDataset* out = png->CreateCopy(tmp.c_str(), ds, FALSE, opts, nullptr, nullptr);
+  CSLDestroy(opts);
   GDALClose(ds);
   if (!out) throw std::runtime_error(path + ": GDAL cannot write the PNG");
   GDALClose(out);

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <vector>
 
 #include "pcdp/errors.hpp"
 #include "pcdp/io/geotiff.hpp"
@@ -18,6 +19,7 @@ const OptionSchema& fuse_elevation_schema() {
       opt_string("extent", "", "xmin,ymin,xmax,ymax in map metres; empty: the grid grows with the data"),
       opt_double("z_max", 1e9, -1e9, 1e9, "m", "points higher than this (map z) are not fused: ceilings, overhangs, tree crowns"),
       opt_bool("png", true, "also draw elevation.png"),
+      opt_int("deflate_level", 1, 1.0, 12.0, "", "DEFLATE level of elevation.tif: 1 writes fastest (3x GDAL's default 6 on the sample, 2 % larger), 12 smallest"),
   };
   return s;
 }
@@ -38,9 +40,22 @@ void for_each_point(const Pass& pass, const FuseElevationParams& p, double fallb
 }
 }  // namespace
 
+namespace {
+/// The samples of the points of `pass` that go into `grid`, in the pass's order.
+std::vector<ElevationSample> samples(const ElevationGrid& grid, const Pass& pass, const FuseElevationParams& p,
+                                     double fallback_var) {
+  std::vector<ElevationSample> out;
+  out.reserve(pass.size());
+  for_each_point(pass, p, fallback_var, [&](double x, double y, double z, double var, std::int32_t k) {
+    out.push_back(grid.sample(x, y, z, var, k));
+  });
+  return out;
+}
+}  // namespace
+
 void fuse_pass(ElevationGrid& grid, const Pass& pass, const FuseElevationParams& p, double fallback_var) {
-  for_each_point(pass, p, fallback_var,
-                 [&](double x, double y, double z, double var, std::int32_t k) { grid.add(x, y, z, var, k); });
+  const std::vector<ElevationSample> s = samples(grid, pass, p, fallback_var);
+  grid.add(s.data(), s.size());
 }
 
 namespace {
@@ -49,16 +64,16 @@ class FuseElevationStage final : public Stage {
   FuseElevationStage(FuseElevationParams p, double fallback_var)
       : params_(p), fallback_var_(fallback_var), grid_(p.resolution, p.band, p.min_support) {}
   bool split() const override { return true; }
-  // The points this pass adds (copied, since later stages may still change the pass).
+  // The samples this pass adds, computed on the worker (copied, since later stages may still
+  // change the pass); in order, the grid only looks their cells up and sums.
   std::unique_ptr<StageWork> compute(const Pass& pass, StageReport&) const override {
     auto w = std::make_unique<Work>();
-    for_each_point(pass, params_, fallback_var_, [&](double x, double y, double z, double var, std::int32_t k) {
-      w->points.push_back({x, y, z, var, k});
-    });
+    w->samples = samples(grid_, pass, params_, fallback_var_);
     return w;
   }
   void apply(std::unique_ptr<StageWork> work, StageReport&) override {
-    for (const auto& p : static_cast<Work&>(*work).points) grid_.add(p.x, p.y, p.z, p.var, p.pass);
+    const auto& s = static_cast<Work&>(*work).samples;
+    grid_.add(s.data(), s.size());
   }
   void process(Pass& pass, StageReport&) override { fuse_pass(grid_, pass, params_, fallback_var_); }
   // Two products, written at once when the run has threads: elevation.tif (and the report's
@@ -74,7 +89,7 @@ class FuseElevationStage final : public Stage {
       report.metrics["write_seconds"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       return;
     }
-    io::write_elevation_geotiff(grid_, sink.staged_path("elevation.tif"));
+    io::write_elevation_geotiff(grid_, sink.staged_path("elevation.tif"), params_.deflate_level);
     report.metrics["write_seconds"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::size_t fused = 0;
     grid_.for_each([&](std::int64_t, std::int64_t, const ElevationCell& c) {
@@ -89,11 +104,7 @@ class FuseElevationStage final : public Stage {
   double fallback_var_;
   ElevationGrid grid_;
   struct Work final : StageWork {
-    struct P {
-      double x, y, z, var;
-      std::int32_t pass;
-    };
-    std::vector<P> points;
+    std::vector<ElevationSample> samples;
   };
 };
 }  // namespace
@@ -108,6 +119,7 @@ StageInfo fuse_elevation_stage_info() {
             p.resolution = o.get_double("resolution");
             p.band = o.get_double("band");
             p.png = o.get_bool("png");
+            p.deflate_level = static_cast<int>(o.get_int("deflate_level"));
             p.z_max = o.get_double("z_max");
             p.min_support = static_cast<std::uint32_t>(o.get_int("min_support"));
             const std::string ext = o.get_string("extent");

@@ -19,6 +19,7 @@ struct FuseElevationParams {
   double xmin = 0, ymin = 0, xmax = 0, ymax = 0;
   double z_max = 1e9;       ///< m, points above are not fused
   bool png = true;
+  int deflate_level = 1;    ///< of elevation.tif, 1 .. 12
 };
 
 const OptionSchema& fuse_elevation_schema();
