@@ -71,37 +71,52 @@ void write_elevation_geotiff(const ElevationGrid& grid, const std::string& path,
   ds->SetMetadataItem("PCDP_RESOLUTION", buf);
   ds->SetMetadataItem("PCDP_MIN_SUPPORT", std::to_string(grid.min_support()).c_str());
   ds->SetMetadataItem("PCDP_CONTRACT", "bands 1-5 per DESIGN.md; 6 passes; 7-22 the four highest height bands (exact merge state)");
-  // Every band in one visit of the cells (the surface is computed once per cell, not per band).
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  const std::size_t plane = static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny);
-  std::vector<float> data(plane * kBands, nan);
-  grid.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
-    if (c.empty()) return;
-    float* v = data.data() + static_cast<std::size_t>(iy1 - iy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(ix - ix0);
-    double e = 0, var = 0;
-    if (grid.surface(c, e, var)) {
-      v[0] = static_cast<float>(e);
-      v[plane] = static_cast<float>(var);
-    }
-    v[2 * plane] = static_cast<float>(c.count);
-    v[3 * plane] = c.zmin;
-    v[4 * plane] = c.zmax;
-    v[5 * plane] = static_cast<float>(c.passes);
-    for (int k = 0; k < ElevationCell::kBands; ++k) {
-      const HeightBand& hb = c.bands[static_cast<std::size_t>(k)];
-      if (hb.empty()) continue;
-      float* h = v + static_cast<std::size_t>(kFixed + kPerBand * k) * plane;
-      h[0] = static_cast<float>(hb.index);
-      h[plane] = static_cast<float>(hb.w);
-      h[2 * plane] = static_cast<float>(hb.wz / hb.w);
-      h[3 * plane] = static_cast<float>(hb.count);
-    }
-  });
+  // One plane at a time (a grid of 100 passes spans millions of pixels: all 22 planes at once
+  // measured 90 MB more peak memory), with each cell's surface computed once, not once per band.
+  std::vector<float> surf(2 * grid.size());
+  {
+    std::size_t i = 0;
+    grid.for_each([&](std::int64_t, std::int64_t, const ElevationCell& c) {
+      double e = 0, var = 0;
+      const bool fused = !c.empty() && grid.surface(c, e, var);
+      surf[2 * i] = fused ? static_cast<float>(e) : nan;
+      surf[2 * i + 1] = fused ? static_cast<float>(var) : nan;
+      ++i;
+    });
+  }
+  std::vector<float> data(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny));
   for (int b = 0; b < kBands; ++b) {
+    std::fill(data.begin(), data.end(), nan);
+    std::size_t i = 0;
+    grid.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
+      const std::size_t cell = i++;
+      if (c.empty()) return;
+      float& v = data[static_cast<std::size_t>(iy1 - iy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(ix - ix0)];
+      if (b >= kFixed) {
+        const HeightBand& hb = c.bands[static_cast<std::size_t>((b - kFixed) / kPerBand)];
+        if (hb.empty()) return;
+        switch ((b - kFixed) % kPerBand) {
+          case 0: v = static_cast<float>(hb.index); break;
+          case 1: v = static_cast<float>(hb.w); break;
+          case 2: v = static_cast<float>(hb.wz / hb.w); break;
+          default: v = static_cast<float>(hb.count); break;
+        }
+        return;
+      }
+      switch (b) {
+        case 0: v = surf[2 * cell]; break;
+        case 1: v = surf[2 * cell + 1]; break;
+        case 2: v = static_cast<float>(c.count); break;
+        case 3: v = c.zmin; break;
+        case 4: v = c.zmax; break;
+        default: v = static_cast<float>(c.passes); break;
+      }
+    });
     GDALRasterBand* band = ds->GetRasterBand(b + 1);
     band->SetDescription(band_name(b).c_str());
     band->SetNoDataValue(std::numeric_limits<double>::quiet_NaN());
-    if (band->RasterIO(GF_Write, 0, 0, nx, ny, data.data() + static_cast<std::size_t>(b) * plane, nx, ny, GDT_Float32, 0, 0) != CE_None) {
+    if (band->RasterIO(GF_Write, 0, 0, nx, ny, data.data(), nx, ny, GDT_Float32, 0, 0) != CE_None) {
       GDALClose(ds);
       std::remove(tmp.c_str());
       throw std::runtime_error(path + ": GDAL write failed");
