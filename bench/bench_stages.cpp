@@ -93,6 +93,20 @@ static void BM_FuseElevation(benchmark::State& state) {
 }
 BENCHMARK(BM_FuseElevation)->Threads(1)->Threads(2)->UseRealTime();
 
+// The pipeline's case: one more pass into a grid that persists (here one that already holds the
+// same area, as the passes of a run overlap), so its cells exist and only their sums change.
+static void BM_FuseElevationIntoGrid(benchmark::State& state) {
+  const Data& d = data();
+  FuseElevationParams fp;
+  ElevationGrid g(fp.resolution, fp.band, fp.min_support);
+  fuse_pass(g, d.mixed, fp, 1e-4);
+  per_pass(state, d.mixed, [&](Pass& p) {
+    fuse_pass(g, p, fp, 1e-4);
+    benchmark::DoNotOptimize(g);
+  });
+}
+BENCHMARK(BM_FuseElevationIntoGrid)->UseRealTime();
+
 static void BM_OctoMapCast(benchmark::State& state) {
   const Data& d = data();
   const OctoMapParams op;

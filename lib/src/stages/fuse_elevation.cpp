@@ -1,5 +1,6 @@
 #include "pcdp/stages/fuse_elevation.hpp"
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -54,8 +55,17 @@ std::vector<ElevationSample> samples(const ElevationGrid& grid, const Pass& pass
 }  // namespace
 
 void fuse_pass(ElevationGrid& grid, const Pass& pass, const FuseElevationParams& p, double fallback_var) {
-  const std::vector<ElevationSample> s = samples(grid, pass, p, fallback_var);
-  grid.add(s.data(), s.size());
+  // In slices through a small buffer: no array the size of the pass to allocate (and fault in).
+  std::array<ElevationSample, 256> buf;
+  std::size_t n = 0;
+  for_each_point(pass, p, fallback_var, [&](double x, double y, double z, double var, std::int32_t k) {
+    buf[n++] = grid.sample(x, y, z, var, k);
+    if (n == buf.size()) {
+      grid.add(buf.data(), n);
+      n = 0;
+    }
+  });
+  grid.add(buf.data(), n);
 }
 
 namespace {
