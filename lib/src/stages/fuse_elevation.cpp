@@ -39,9 +39,7 @@ void for_each_point(const Pass& pass, const FuseElevationParams& p, double fallb
     f(pass.x[i], pass.y[i], pass.z[i], var, static_cast<std::int32_t>(pass.index));
   }
 }
-}  // namespace
 
-namespace {
 /// The samples of the points of `pass` that go into `grid`, in the pass's order.
 std::vector<ElevationSample> samples(const ElevationGrid& grid, const Pass& pass, const FuseElevationParams& p,
                                      double fallback_var) {
