@@ -82,6 +82,40 @@ static void BM_CheckConsistencyCollect(benchmark::State& state) {
 }
 BENCHMARK(BM_CheckConsistencyCollect)->Threads(1)->Threads(2)->UseRealTime();
 
+// The whole stage on four passes of setting A (as the pipeline runs it: every pass's evidence,
+// finalize, then every pass labelled), on `threads` threads inside finalize.
+static void BM_CheckConsistency(benchmark::State& state) {
+  static const std::vector<Pass> passes = [] {
+    bench::Setting s = bench::make_setting('A', 1);
+    s.sim.passes = 4;
+    const auto r = sim::simulate(s.sim);
+    const PoseTrack poses(r.poses);
+    const Eigen::Isometry3d T_V_N = make_transform(s.sim.mount_translation, s.sim.mount_rpy, s.sim.rpy_order);
+    std::vector<Pass> out;
+    for (const auto& sp : r.passes) {
+      Pass p = sp.pass;
+      register_pass(p, RegisterParams{}, s.sensor, T_V_N, &poses);
+      reject_occlusion(p, OcclusionParams{}, s.sensor);
+      reject_mixed_pixels(p, MixedPixelParams{}, s.sensor);
+      out.push_back(std::move(p));
+    }
+    return out;
+  }();
+  std::size_t n = 0;
+  for (const Pass& p : passes) n += p.size();
+  for (auto _ : state) {
+    state.PauseTiming();
+    std::vector<Pass> work = passes;
+    state.ResumeTiming();
+    ConsistencyEvidence ev{ConsistencyParams{}};
+    for (const Pass& p : work) ev.add_pass(p);
+    ev.finalize(static_cast<unsigned>(state.range(0)));
+    for (Pass& p : work) benchmark::DoNotOptimize(ev.label(p));
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * n));
+}
+BENCHMARK(BM_CheckConsistency)->ArgName("threads")->Arg(1)->Arg(2)->UseRealTime()->Unit(benchmark::kMillisecond);
+
 static void BM_FuseElevation(benchmark::State& state) {
   const Data& d = data();
   FuseElevationParams fp;

@@ -162,6 +162,11 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
           rep.seconds += dt;
           rep.metrics["prepass_seconds"] += dt;
         });
+    const auto t0 = std::chrono::steady_clock::now();
+    stages_[s]->prepass_finish(sum.threads);
+    const double dt = seconds_since(t0);
+    sum.stages[s].seconds += dt;
+    sum.stages[s].metrics["prepass_seconds"] += dt;
   }
   std::int64_t last_line = -1;
   std::string last_file;

@@ -1,6 +1,10 @@
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <random>
+#include <set>
+#include <stdexcept>
 
 #include "pcdp/pass.hpp"
 #include "pcdp/stages/check_consistency.hpp"
@@ -44,6 +48,7 @@ TEST(CheckConsistency, AVeilThatAnotherPassSawThroughIsLabelledAndTheWallIsNot) 
   ConsistencyEvidence ev(prm);
   ev.add_pass(a);
   ev.add_pass(b);
+  ev.finalize();
   EXPECT_EQ(ev.label(a), 1u);
   EXPECT_EQ(a.label.back(), Label::kInconsistent);
   for (std::size_t i = 0; i + 1 < a.size(); ++i) EXPECT_EQ(a.label[i], Label::kKept);
@@ -52,5 +57,159 @@ TEST(CheckConsistency, AVeilThatAnotherPassSawThroughIsLabelledAndTheWallIsNot) 
   ConsistencyEvidence alone(prm);
   Pass a2 = rays(0, {0.05, 0.05, 1.05}, p0);
   alone.add_pass(a2);
+  alone.finalize();
   EXPECT_EQ(alone.label(a2), 0u);
+}
+
+namespace {
+using Voxel = std::array<std::int64_t, 3>;
+Voxel voxel_at(const Eigen::Vector3d& p, double res) {
+  return {static_cast<std::int64_t>(std::floor(p.x() / res)), static_cast<std::int64_t>(std::floor(p.y() / res)),
+          static_cast<std::int64_t>(std::floor(p.z() / res))};
+}
+// The definition, the slow way: every ray walked voxel by voxel (the stage's method before
+// 2026-11-24), then each return judged against every other pass's voxel sets.
+std::vector<std::vector<Label>> reference_labels(const std::vector<Pass>& passes, const ConsistencyParams& p) {
+  const double res = p.resolution;
+  std::vector<std::set<Voxel>> hit(passes.size()), free(passes.size());
+  for (std::size_t k = 0; k < passes.size(); ++k) {
+    const Pass& pass = passes[k];
+    for (std::size_t i = 0; i < pass.size(); ++i) {
+      if (!pass.is_kept(i)) continue;
+      const Eigen::Vector3d o(pass.ox[i], pass.oy[i], pass.oz[i]), e(pass.x[i], pass.y[i], pass.z[i]);
+      hit[k].insert(voxel_at(e, res));
+      const double len = (e - o).norm();
+      if (len <= p.margin || len > p.max_range) continue;
+      const Eigen::Vector3d d = (e - o) / len;
+      Voxel v = voxel_at(o, res);
+      double tmax[3], tdelta[3];
+      for (int a = 0; a < 3; ++a) {
+        const double boundary = (static_cast<double>(v[a]) + (d[a] > 0 ? 1.0 : 0.0)) * res;
+        tmax[a] = std::fabs(d[a]) > 1e-12 ? (boundary - o[a]) / d[a] : INFINITY;
+        tdelta[a] = std::fabs(d[a]) > 1e-12 ? res / std::fabs(d[a]) : INFINITY;
+      }
+      for (double t = 0.0; t < len - p.margin;) {
+        free[k].insert(v);
+        const int a = tmax[0] < tmax[1] ? (tmax[0] < tmax[2] ? 0 : 2) : (tmax[1] < tmax[2] ? 1 : 2);
+        t = tmax[a];
+        tmax[a] += tdelta[a];
+        v[a] += d[a] > 0 ? 1 : -1;
+      }
+    }
+  }
+  std::vector<std::vector<Label>> out;
+  for (std::size_t k = 0; k < passes.size(); ++k) {
+    std::vector<Label> labels = passes[k].label;
+    for (std::size_t i = 0; i < passes[k].size(); ++i) {
+      if (!passes[k].is_kept(i)) continue;
+      const Voxel v = voxel_at({passes[k].x[i], passes[k].y[i], passes[k].z[i]}, res);
+      int seen_free = 0;
+      bool near_hit = false;
+      for (std::size_t j = 0; j < passes.size(); ++j) {
+        if (j == k) continue;
+        seen_free += free[j].count(v) ? 1 : 0;
+        const int h = p.hit_radius;
+        for (int dx = -h; dx <= h; ++dx)
+          for (int dy = -h; dy <= h; ++dy)
+            for (int dz = -h; dz <= h; ++dz) near_hit = near_hit || hit[j].count({v[0] + dx, v[1] + dy, v[2] + dz});
+      }
+      if (seen_free >= p.min_passes && !near_hit) labels[i] = Label::kInconsistent;
+    }
+    out.push_back(labels);
+  }
+  return out;
+}
+
+// Passes that look at the same few walls and floor from different places, with stray returns
+// floating in between (veils, false ranges) that other passes see through.
+std::vector<Pass> random_scene(std::uint32_t seed, std::size_t npasses) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<Pass> passes;
+  for (std::size_t k = 0; k < npasses; ++k) {
+    const Eigen::Vector3d origin(2.0 + 4.0 * u(rng), -3.0 + 6.0 * u(rng), 1.0 + u(rng));
+    std::vector<Eigen::Vector3d> pts;
+    for (int i = 0; i < 1500; ++i) {
+      Eigen::Vector3d q;
+      const double r = u(rng);
+      if (r < 0.4) q = {12.0 + 0.02 * u(rng), -8.0 + 16.0 * u(rng), 3.0 * u(rng)};   // a far wall
+      else if (r < 0.8) q = {12.0 * u(rng), -8.0 + 16.0 * u(rng), 0.01 * u(rng)};     // the floor
+      else if (r < 0.9) q = {-4.0 + 0.02 * u(rng), -8.0 + 16.0 * u(rng), 3.0 * u(rng)}; // a wall behind
+      else q = {1.0 + 10.0 * u(rng), -6.0 + 12.0 * u(rng), 0.2 + 2.5 * u(rng)};       // strays in between
+      pts.push_back(q);
+    }
+    passes.push_back(rays(k, origin, pts));
+    // Moving origins, as on a vehicle: every return from its own point.
+    Pass& p = passes.back();
+    for (std::size_t i = 0; i < p.size(); ++i) p.ox[i] += 0.001 * static_cast<double>(i);
+  }
+  return passes;
+}
+}  // namespace
+
+TEST(CheckConsistency, LabelsEqualTheVoxelByVoxelDefinition) {
+  // The stage looks for free space only where it can decide a label (returns with no other pass's
+  // hit nearby) and tests rays against those voxels exactly: it must label exactly what walking
+  // every ray voxel by voxel labels, whatever the options.
+  struct Case {
+    ConsistencyParams p;
+    std::uint32_t seed;
+  };
+  std::vector<Case> cases;
+  for (std::uint32_t seed : {1u, 2u, 3u}) {
+    ConsistencyParams p;
+    cases.push_back({p, seed});
+    p.hit_radius = seed - 1;  // 0, 1, 2
+    p.min_passes = 2;
+    p.resolution = 0.05 * seed;
+    p.margin = 0.2 * seed;
+    p.max_range = 8.0 + 3.0 * seed;
+    cases.push_back({p, seed + 10});
+  }
+  std::size_t total_inconsistent = 0, total_lonely_kept = 0;
+  for (const Case& c : cases) {
+    std::vector<Pass> passes = random_scene(c.seed, 4);
+    const auto want = reference_labels(passes, c.p);
+    ConsistencyEvidence ev(c.p);
+    for (const Pass& p : passes) ev.add_pass(p);
+    ev.finalize();
+    std::size_t labelled = 0;
+    for (std::size_t k = 0; k < passes.size(); ++k) {
+      labelled += ev.label(passes[k]);
+      for (std::size_t i = 0; i < passes[k].size(); ++i)
+        ASSERT_EQ(passes[k].label[i], want[k][i]) << "seed " << c.seed << " pass " << k << " return " << i;
+    }
+    const auto& s = ev.stats();
+    EXPECT_EQ(s.returns, 4u * 1500u);
+    EXPECT_LE(labelled, s.lonely_returns);  // only lonely returns can be contradicted
+    total_inconsistent += labelled;
+    total_lonely_kept += s.lonely_returns - labelled;
+  }
+  // Not vacuous: both outcomes occur among the returns that needed free-space evidence.
+  EXPECT_GT(total_inconsistent, 100u);
+  EXPECT_GT(total_lonely_kept, 100u);
+}
+
+TEST(CheckConsistency, TheThreadCountDoesNotChangeTheLabels) {
+  const std::vector<Pass> passes = random_scene(7, 5);
+  std::vector<std::vector<Label>> got[2];
+  for (unsigned threads : {1u, 2u}) {
+    ConsistencyEvidence ev{ConsistencyParams{}};
+    for (const Pass& p : passes) ev.add_pass(p);
+    ev.finalize(threads);
+    for (Pass p : passes) {
+      ev.label(p);
+      got[threads - 1].push_back(p.label);
+    }
+  }
+  EXPECT_EQ(got[0], got[1]);
+}
+
+TEST(CheckConsistency, EvidenceIsCompleteBeforeLabelling) {
+  std::vector<Pass> passes = random_scene(3, 2);
+  ConsistencyEvidence ev{ConsistencyParams{}};
+  ev.add_pass(passes[0]);
+  EXPECT_THROW(ev.label(passes[0]), std::logic_error);  // not finalized: the labels would be wrong
+  ev.finalize();
+  EXPECT_THROW(ev.add_pass(passes[1]), std::logic_error);  // too late: the rays are gone
 }

@@ -88,6 +88,9 @@ class Stage {
   virtual bool prepass_split() const { return false; }
   virtual std::unique_ptr<StageWork> prepass_compute(const Pass& /*pass*/) const { return nullptr; }
   virtual void prepass_apply(std::unique_ptr<StageWork> /*work*/) {}
+  /// After the prepass has seen every pass, before the first process(): may use up to `threads`
+  /// threads; its result must not depend on how many.
+  virtual void prepass_finish(unsigned /*threads*/) {}
 };
 
 /// Shared, read-only resources of a run, loaded in the prepare phase.

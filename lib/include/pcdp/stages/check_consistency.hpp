@@ -4,14 +4,22 @@
 // voxels of it. A second line of defence against mixed pixels and false ranges that single-scan
 // filters miss.
 //
-// Evidence is collected in a prepass over every pass (the pipeline streams the passes twice):
-// each kept return's ray is walked voxel by voxel (3-D DDA) from its own sensor origin up to
-// `margin` short of its end, marking the voxels free for that pass; its end voxel is marked hit.
-// Voxels are kept in 8 x 8 x 8 blocks (voxel_blocks.hpp): the walk's steps stay in cache.
+// How the evidence is gathered (the definition above is unchanged; only where it is looked for):
+//  1. prepass, one pass at a time: the voxels the pass's kept returns end in (its hits), and its
+//     rays, kept compactly (32 bytes a ray) until every pass has been seen;
+//  2. finalize, once: a return with another pass's hit within hit_radius voxels is consistent
+//     whatever crossed it, so free-space evidence is needed only at the voxels of the other,
+//     "lonely" returns (a few per cent of them). Every ray is then walked over a coarse grid of
+//     those voxels' cells, and tested exactly (ray against box) only against the lonely voxels of
+//     the cells it crosses, instead of being walked voxel by voxel;
+//  3. label: one lookup per return.
+// Walking every ray voxel by voxel cost about 3 ns a step, 300 ns a ray; see docs/performance.md.
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
+#include "pcdp/flat_map.hpp"
 #include "pcdp/stage.hpp"
 #include "pcdp/voxel_blocks.hpp"
 
@@ -29,34 +37,69 @@ struct ConsistencyParams {
 
 const OptionSchema& check_consistency_schema();
 
-/// Free-space and hit evidence per voxel, with the passes (modulo 64) that gave it.
+/// Hit evidence per voxel and the rays of every pass; after finalize(), the free-space evidence
+/// at the voxels where it decides a label.
 class ConsistencyEvidence {
  public:
-  explicit ConsistencyEvidence(const ConsistencyParams& p) : p_(p) {}
-  /// The voxels one pass saw: its end points (hit) and the voxels its rays crossed (free).
-  struct PassVoxels {
-    std::uint64_t bit = 0;
-    VoxelSet hit{0x27d4eb2fu}, free{0x5bd1e995u};  // salts unlike the evidence's own
+  explicit ConsistencyEvidence(const ConsistencyParams& p);
+
+  /// One kept return: its end voxel (packed coordinates) and its ray, relative to the pass's
+  /// anchor (single precision: a few micrometres within a kilometre of it).
+  struct Ray {
+    float o[3], e[3];
+    std::uint64_t voxel;
+  };
+  /// What one pass contributes: the voxels it returned from and its rays.
+  struct PassRays {
+    std::uint64_t bit = 0;  ///< 1 << (pass index mod 64)
+    VoxelSet hit{0x27d4eb2fu};
+    double anchor[3] = {0.0, 0.0, 0.0};
+    std::vector<Ray> rays;
   };
   /// The evidence of one pass (const: any thread, several passes at once).
-  PassVoxels collect(const Pass& pass) const;
+  PassRays collect(const Pass& pass) const;
   /// Adds one pass's evidence (the bits of different passes commute: any order gives one result).
-  void merge(const PassVoxels& v);
+  /// Throws std::logic_error after finalize().
+  void merge(PassRays&& v);
   /// collect + merge.
   void add_pass(const Pass& pass);
-  /// Labels the contradicted kept returns of `pass`; returns how many.
+  /// After the last pass: finds the lonely returns and the passes whose rays crossed their voxels,
+  /// on up to `threads` threads (the result does not depend on it), then frees the rays.
+  void finalize(unsigned threads = 1);
+  /// Labels the contradicted kept returns of `pass`; returns how many. Needs finalize().
   std::size_t label(Pass& pass) const;
 
+  /// What finalize() found, for the stage's report.
+  struct Stats {
+    std::uint64_t returns = 0;        ///< kept returns of every pass
+    std::uint64_t lonely_returns = 0; ///< with no other pass's hit within hit_radius
+    std::uint64_t lonely_voxels = 0;
+    std::uint64_t rays_walked = 0;    ///< rays that give free-space evidence (margin < length <= max_range)
+    std::uint64_t crossings = 0;      ///< (ray, lonely voxel) pairs found crossed
+  };
+  const Stats& stats() const { return stats_; }
+
  private:
-  struct Voxel {
-    std::uint64_t free = 0, hit = 0;  ///< bit (pass mod 64)
+  struct HitBlock {
+    std::uint64_t hit[512] = {};  ///< bit (pass mod 64)
   };
-  struct Block {
-    Voxel v[512];
+  struct Lonely {
+    std::uint64_t key;            ///< packed voxel coordinates
+    std::uint64_t passes = 0;     ///< passes with a lonely return in this voxel
+    std::uint64_t free = 0;       ///< passes whose rays crossed it
   };
-  const Voxel* find(std::uint32_t x, std::uint32_t y, std::uint32_t z) const;
+  bool other_hit_near(std::uint64_t voxel, std::uint64_t bit) const;
+  void find_lonely(unsigned threads);
+  void walk_rays(unsigned threads);
+
   ConsistencyParams p_;
-  BlockGrid<Block> voxels_;
+  std::vector<int> offsets_;  ///< neighbour offsets within hit_radius, (dx, dy, dz) triples, nearest first
+  BlockGrid<HitBlock> hits_{0x61c88647u};
+  std::vector<PassRays> passes_;  ///< until finalize()
+  bool finalized_ = false;
+  std::vector<Lonely> lonely_;
+  FlatMap<std::uint32_t> lonely_index_{0x3c6ef372u};  ///< key -> position in lonely_
+  Stats stats_;
 };
 
 StageInfo check_consistency_stage_info();
