@@ -88,6 +88,10 @@ class ConsistencyEvidence {
     std::uint64_t passes = 0;     ///< passes with a lonely return in this voxel
     std::uint64_t free = 0;       ///< passes whose rays crossed it
   };
+  struct Chunk {
+    std::size_t pass, begin, end;  ///< rays [begin, end) of passes_[pass]
+  };
+  std::vector<Chunk> chunks() const;
   bool other_hit_near(std::uint64_t voxel, std::uint64_t bit) const;
   void find_lonely(unsigned threads);
   void walk_rays(unsigned threads);
