@@ -122,7 +122,7 @@ std::vector<std::vector<Label>> reference_labels(const std::vector<Pass>& passes
 
 // Passes that look at the same few walls and floor from different places, with stray returns
 // floating in between (veils, false ranges) that other passes see through.
-std::vector<Pass> random_scene(std::uint32_t seed, std::size_t npasses) {
+std::vector<Pass> random_scene(std::uint32_t seed, std::size_t npasses, const Eigen::Vector3d& offset = Eigen::Vector3d::Zero()) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   std::vector<Pass> passes;
@@ -136,9 +136,9 @@ std::vector<Pass> random_scene(std::uint32_t seed, std::size_t npasses) {
       else if (r < 0.8) q = {12.0 * u(rng), -8.0 + 16.0 * u(rng), 0.01 * u(rng)};     // the floor
       else if (r < 0.9) q = {-4.0 + 0.02 * u(rng), -8.0 + 16.0 * u(rng), 3.0 * u(rng)}; // a wall behind
       else q = {1.0 + 10.0 * u(rng), -6.0 + 12.0 * u(rng), 0.2 + 2.5 * u(rng)};       // strays in between
-      pts.push_back(q);
+      pts.push_back(q + offset);
     }
-    passes.push_back(rays(k, origin, pts));
+    passes.push_back(rays(k, origin + offset, pts));
     // Moving origins, as on a vehicle: every return from its own point.
     Pass& p = passes.back();
     for (std::size_t i = 0; i < p.size(); ++i) p.ox[i] += 0.001 * static_cast<double>(i);
@@ -154,6 +154,7 @@ TEST(CheckConsistency, LabelsEqualTheVoxelByVoxelDefinition) {
   struct Case {
     ConsistencyParams p;
     std::uint32_t seed;
+    Eigen::Vector3d offset = Eigen::Vector3d::Zero();
   };
   std::vector<Case> cases;
   for (std::uint32_t seed : {1u, 2u, 3u}) {
@@ -166,9 +167,12 @@ TEST(CheckConsistency, LabelsEqualTheVoxelByVoxelDefinition) {
     p.max_range = 8.0 + 3.0 * seed;
     cases.push_back({p, seed + 10});
   }
+  // In a UTM frame (500 km east, 4500 km north): voxel indices far beyond the 21-bit keys, which
+  // wrap; the geometry must not.
+  for (std::uint32_t seed : {21u, 22u}) cases.push_back({ConsistencyParams{}, seed, {500000.0, 4500000.0, 100.0}});
   std::size_t total_inconsistent = 0, total_lonely_kept = 0;
   for (const Case& c : cases) {
-    std::vector<Pass> passes = random_scene(c.seed, 4);
+    std::vector<Pass> passes = random_scene(c.seed, 4, c.offset);
     const auto want = reference_labels(passes, c.p);
     ConsistencyEvidence ev(c.p);
     for (const Pass& p : passes) ev.add_pass(p);

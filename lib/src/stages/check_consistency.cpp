@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <stdexcept>
 
 #include "../ordered_parallel.hpp"
@@ -39,6 +40,17 @@ void unpack(std::uint64_t k, std::uint32_t c[3]) {
   c[0] = static_cast<std::uint32_t>(k >> 42) & kVoxelCoordMask;
   c[1] = static_cast<std::uint32_t>(k >> 21) & kVoxelCoordMask;
   c[2] = static_cast<std::uint32_t>(k) & kVoxelCoordMask;
+}
+
+// The signed voxel index whose 21-bit coordinate is `wrapped`, nearest to `approx` (any estimate
+// within 2^20 voxels): the keys wrap (UTM coordinates at 0.1 m already do), the geometry must not.
+std::int64_t unwrap(std::uint32_t wrapped, double approx) {
+  constexpr std::int64_t kPeriod = std::int64_t{1} << 21;
+  const std::int64_t near = ifloor(approx);
+  std::int64_t diff = (static_cast<std::int64_t>(wrapped) - kCoordOffset - near) % kPeriod;
+  if (diff < -kCoordOffset) diff += kPeriod;
+  if (diff >= kCoordOffset) diff -= kPeriod;
+  return near + diff;
 }
 
 // A ray o + t d (d a unit vector, 0 <= t < tend) in double precision, from a stored Ray.
@@ -158,7 +170,7 @@ struct LonelyCells {
     std::uint32_t index;  // position in the evidence's lonely list
   };
   static constexpr std::uint32_t kFew = 8;  // boxes a block tests without walking its cells
-  double lo_w[3] = {0, 0, 0};        // the grid's low corner, m
+  double lo_w[3] = {0, 0, 0};        // the grid's low corner (the lowest lonely voxel's), m
   std::int64_t n[3] = {0, 0, 0};     // cells per axis
   std::int64_t nb[3] = {0, 0, 0};    // blocks per axis
   std::uint32_t edge;                // voxels per cell edge
@@ -168,35 +180,28 @@ struct LonelyCells {
   template <class Lonely>
   LonelyCells(const std::vector<Lonely>& lonely, std::uint32_t cell_edge, double res) : edge(cell_edge) {
     if (lonely.empty()) return;
-    std::uint32_t vlo[3] = {kVoxelCoordMask, kVoxelCoordMask, kVoxelCoordMask}, vhi[3] = {0, 0, 0};
-    for (const Lonely& l : lonely) {
-      std::uint32_t c[3];
-      unpack(l.key, c);
+    std::int64_t vlo[3] = {INT64_MAX, INT64_MAX, INT64_MAX}, vhi[3] = {INT64_MIN, INT64_MIN, INT64_MIN};
+    for (const Lonely& l : lonely)
       for (int a = 0; a < 3; ++a) {
-        vlo[a] = std::min(vlo[a], c[a]);
-        vhi[a] = std::max(vhi[a], c[a]);
+        vlo[a] = std::min(vlo[a], l.v[a]);
+        vhi[a] = std::max(vhi[a], l.v[a]);
       }
-    }
-    std::uint32_t lo[3];
     // The smallest cells (from the given edge) whose directory stays within 4 M entries (16 MB).
     for (;; edge *= 2) {
       std::size_t cells = 512;
       for (int a = 0; a < 3; ++a) {
-        lo[a] = vlo[a] / edge;
-        n[a] = vhi[a] / edge - lo[a] + 1;
+        n[a] = (vhi[a] - vlo[a]) / edge + 1;
         nb[a] = (n[a] + 7) / 8;
         cells *= static_cast<std::size_t>(nb[a]);
       }
       if (cells <= (std::size_t{1} << 22)) break;
     }
-    for (int a = 0; a < 3; ++a) lo_w[a] = static_cast<double>(static_cast<std::int64_t>(lo[a]) * edge - kCoordOffset) * res;
+    for (int a = 0; a < 3; ++a) lo_w[a] = static_cast<double>(vlo[a]) * res;
     std::vector<std::uint32_t> cell_of(lonely.size());
     begin.assign(static_cast<std::size_t>(nb[0] * nb[1] * nb[2]) * 512 + 1, 0);
     for (std::size_t i = 0; i < lonely.size(); ++i) {
-      std::uint32_t c[3];
-      unpack(lonely[i].key, c);
       std::int64_t cc[3];
-      for (int a = 0; a < 3; ++a) cc[a] = c[a] / edge - lo[a];
+      for (int a = 0; a < 3; ++a) cc[a] = (lonely[i].v[a] - vlo[a]) / edge;
       cell_of[i] = static_cast<std::uint32_t>(cell_index(cc));
       ++begin[cell_of[i] + 1];
     }
@@ -204,10 +209,8 @@ struct LonelyCells {
     std::vector<std::uint32_t> next(begin.begin(), begin.end() - 1);
     boxes.resize(lonely.size());
     for (std::size_t i = 0; i < lonely.size(); ++i) {
-      std::uint32_t c[3];
-      unpack(lonely[i].key, c);
       Box& b = boxes[next[cell_of[i]]++];
-      for (int a = 0; a < 3; ++a) b.v[a] = static_cast<std::int64_t>(c[a]) - kCoordOffset;
+      for (int a = 0; a < 3; ++a) b.v[a] = lonely[i].v[a];
       b.index = static_cast<std::uint32_t>(i);
     }
   }
@@ -362,7 +365,7 @@ std::vector<ConsistencyEvidence::Chunk> ConsistencyEvidence::chunks() const {
 
 void ConsistencyEvidence::find_lonely(unsigned threads) {
   struct Found {
-    std::vector<std::uint64_t> keys;
+    std::vector<Lonely> voxels;  // one per lonely return
   };
   const std::vector<Chunk> work = chunks();
   detail::ordered_parallel<Found>(
@@ -378,17 +381,24 @@ void ConsistencyEvidence::find_lonely(unsigned threads) {
             last = r.voxel;
             last_lonely = !other_hit_near(r.voxel, pr.bit);
           }
-          if (last_lonely) f.keys.push_back(r.voxel);
+          if (last_lonely) {
+            std::uint32_t c[3];
+            unpack(r.voxel, c);
+            Lonely l{r.voxel, {}, 0, 0};
+            for (int a = 0; a < 3; ++a) l.v[a] = unwrap(c[a], (pr.anchor[a] + static_cast<double>(r.e[a])) / p_.resolution);
+            f.voxels.push_back(l);
+          }
         }
         return f;
       },
       [&](std::size_t w, Found&& f) {
         const std::uint64_t bit = passes_[work[w].pass].bit;
-        stats_.lonely_returns += f.keys.size();
-        for (const std::uint64_t key : f.keys) {
+        stats_.lonely_returns += f.voxels.size();
+        for (const Lonely& l : f.voxels) {
+          const std::uint64_t key = l.key;
           std::uint32_t& slot = lonely_index_[key];  // position + 1; 0: new
           if (slot == 0) {
-            lonely_.push_back(Lonely{key, 0, 0});
+            lonely_.push_back(l);
             slot = static_cast<std::uint32_t>(lonely_.size());
           }
           lonely_[slot - 1].passes |= bit;

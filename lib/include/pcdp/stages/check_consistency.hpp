@@ -84,7 +84,8 @@ class ConsistencyEvidence {
     std::uint64_t hit[512] = {};  ///< bit (pass mod 64)
   };
   struct Lonely {
-    std::uint64_t key;            ///< packed voxel coordinates
+    std::uint64_t key;            ///< packed voxel coordinates (21 bits each: they wrap)
+    std::int64_t v[3];            ///< the voxel's signed indices (they do not)
     std::uint64_t passes = 0;     ///< passes with a lonely return in this voxel
     std::uint64_t free = 0;       ///< passes whose rays crossed it
   };
