@@ -2,7 +2,6 @@
 
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <cstdint>
 #include <stdexcept>
@@ -253,19 +252,6 @@ struct LonelyCells {
 };
 }  // namespace
 
-ConsistencyEvidence::ConsistencyEvidence(const ConsistencyParams& p) : p_(p) {
-  // Neighbours within hit_radius, nearest first: a surface is usually found in a step or two.
-  const int h = p_.hit_radius;
-  std::vector<std::array<int, 3>> offs;
-  for (int dz = -h; dz <= h; ++dz)
-    for (int dy = -h; dy <= h; ++dy)
-      for (int dx = -h; dx <= h; ++dx) offs.push_back({dx, dy, dz});
-  std::stable_sort(offs.begin(), offs.end(), [](const std::array<int, 3>& a, const std::array<int, 3>& b) {
-    return a[0] * a[0] + a[1] * a[1] + a[2] * a[2] < b[0] * b[0] + b[1] * b[1] + b[2] * b[2];
-  });
-  for (const auto& o : offs) offsets_.insert(offsets_.end(), o.begin(), o.end());
-}
-
 ConsistencyEvidence::PassRays ConsistencyEvidence::collect(const Pass& pass) const {
   PassRays out;
   out.bit = 1ull << (pass.index % 64);
@@ -312,9 +298,7 @@ void ConsistencyEvidence::merge(PassRays&& v) {
   if (finalized_) throw std::logic_error("ConsistencyEvidence::merge after finalize");
   const BlockGrid<BitBlock>& g = v.hit.blocks();
   for (std::size_t b = 0; b < g.size(); ++b) {
-    const std::uint64_t k = g.key(b);
-    HitBlock& dst = hits_.block(static_cast<std::uint32_t>(k >> 42), static_cast<std::uint32_t>((k >> 21) & 0x1fffff),
-                                static_cast<std::uint32_t>(k & 0x1fffff));
+    HitBlock& dst = hits_.block(g.key(b));
     for_each_bit(g[b].w, [&](unsigned c) { dst.hit[c] |= v.bit; });
   }
   v.hit = VoxelSet{};
@@ -342,9 +326,12 @@ bool ConsistencyEvidence::other_hit_near(std::uint64_t voxel, std::uint64_t bit)
   };
   // The voxel and its six faces first (most returns find a surface there), then the whole cube
   // in raster order, which crosses block boundaries (one lookup each) least often.
-  for (std::size_t i = 0; i < std::min<std::size_t>(offsets_.size(), 21); i += 3)
-    if (hit(offsets_[i], offsets_[i + 1], offsets_[i + 2])) return true;
   const int h = p_.hit_radius;
+  if (hit(0, 0, 0)) return true;
+  if (h >= 1)
+    for (int a = 0; a < 3; ++a)
+      for (const int d : {-1, 1})
+        if (hit(a == 0 ? d : 0, a == 1 ? d : 0, a == 2 ? d : 0)) return true;
   for (int dz = -h; dz <= h; ++dz)
     for (int dy = -h; dy <= h; ++dy)
       for (int dx = -h; dx <= h; ++dx)

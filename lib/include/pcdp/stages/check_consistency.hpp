@@ -41,7 +41,7 @@ const OptionSchema& check_consistency_schema();
 /// at the voxels where it decides a label.
 class ConsistencyEvidence {
  public:
-  explicit ConsistencyEvidence(const ConsistencyParams& p);
+  explicit ConsistencyEvidence(const ConsistencyParams& p) : p_(p) {}
 
   /// One kept return: its end voxel (packed coordinates) and its ray, relative to the pass's
   /// anchor (single precision: a few micrometres within a kilometre of it).
@@ -98,7 +98,6 @@ class ConsistencyEvidence {
   void walk_rays(unsigned threads);
 
   ConsistencyParams p_;
-  std::vector<int> offsets_;  ///< neighbour offsets within hit_radius, (dx, dy, dz) triples, nearest first
   BlockGrid<HitBlock> hits_{0x61c88647u};
   std::vector<PassRays> passes_;  ///< until finalize()
   bool finalized_ = false;
