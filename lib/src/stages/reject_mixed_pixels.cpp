@@ -38,10 +38,14 @@ struct Nb {
   double predicted = 0;
   double r3 = 0, at3 = 0;  ///< a third neighbour, for the side's acceleration
   bool has3 = false;
+  bool beside_void = false;  ///< the next position on this side holds no usable return (not the end of the scan)
 };
 
 Nb neighbours(const ReturnsView& v, const std::vector<std::size_t>& seq, std::size_t pos, int dir, const MixedPixelParams& p) {
   Nb nb;
+  const long next = static_cast<long>(pos) + dir;
+  nb.beside_void = next >= 0 && next < static_cast<long>(seq.size()) ? !v.usable[seq[static_cast<std::size_t>(next)]]
+                                                                     : v.ends_are_voids;
   for (int step = 1; step <= p.window && !nb.has3; ++step) {
     const long q = static_cast<long>(pos) + dir * step;
     if (q < 0 || q >= static_cast<long>(seq.size())) break;
@@ -85,6 +89,38 @@ double side_amp(const ReturnsView& v, const Nb& nb, const MixedPixelParams& p) {
     return v.amplitude[nb.idx[0]];
   return 0.5 * (v.amplitude[nb.idx[0]] + v.amplitude[nb.idx[1]]);
 }
+
+/// One-sided test: whether return i, beside a void on the `gap` side, breaks sharply from the
+/// trend of its one visible surface `own` (a mixture with a surface too weak to return on its
+/// own), rather than continuing it (a valid return at the end of a surface) or continuing the
+/// surface across the void (grazing ground whose returns fade in and out near the detection
+/// limit). The trend is quadratic where `own` has three adjacent returns on one smooth surface
+/// (steps within a factor 3: ground at grazing incidence grows hyperbolically), allowing a
+/// quarter of its step; otherwise linear, allowing half a step per step away.
+bool breaks_from_side(const ReturnsView& v, std::size_t i, const Nb& own, const Nb& gap, double tol,
+                      const MixedPixelParams& p) {
+  if (own.count < 2 || own.at[1] != own.at[0] + 1) return false;
+  const double ri = v.range[i];
+  if (std::fabs(ri - own.r[0]) <= std::max(p.jump_min, p.jump_ratio * own.r[0])) return false;
+  const double step = own.r[1] - own.r[0];
+  double trend = own.r[0] - step * own.at[0], allow = 0.5 * std::fabs(step) * own.at[0];
+  if (own.at[0] == 1 && own.has3 && own.at3 == 3) {
+    const double step2 = own.r3 - own.r[1];
+    const double ratio = std::fabs(step) / std::max(std::fabs(step2), 1e-9);
+    if (step * step2 > 0 && ratio >= 1.0 / 1.5 && ratio <= 1.5) {
+      trend = 3 * own.r[0] - 3 * own.r[1] + own.r3;
+      allow = 0.25 * std::fabs(step);
+    }
+  }
+  if (std::fabs(ri - trend) <= std::max(tol, allow)) return false;
+  if (gap.count >= 2 && gap.at[1] == gap.at[0] + 1) {
+    const double gstep = gap.r[1] - gap.r[0];
+    if (std::fabs(ri - (gap.r[0] - gstep * gap.at[0])) <= std::max(tol, 0.5 * std::fabs(gstep) * gap.at[0])) return false;
+  } else if (gap.count >= 1 && std::fabs(ri - gap.r[0]) <= std::max(p.jump_min, p.jump_ratio * ri)) {
+    return false;
+  }
+  return angle_to(v, i, own.idx[0]) <= p.max_angle;
+}
 }  // namespace
 
 void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq, const MixedPixelParams& p,
@@ -93,25 +129,23 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
     const std::size_t i = seq[pos];
     if (!v.usable[i] || mixed[i]) continue;
     const Nb l = neighbours(v, seq, pos, -1, p), r = neighbours(v, seq, pos, +1, p);
-    if (l.count == 0 || r.count == 0) {
-      // One-sided: beside a void (no return, or only rejected ones, within the window) the other
-      // surface did not return on its own. A mixture breaks sharply from the trend of the side it
-      // has (by more than the tolerance and half that side's own step); a valid return at the end
-      // of a surface continues it.
-      const Nb& own = l.count ? l : r;
-      if (!p.one_sided || own.count < 2) continue;
-      const double ri = v.range[i];
-      const double tol = p.range_tolerance + p.range_tolerance_ratio * ri + 3.0 * range_sigma;
-      const double step = (own.r[1] - own.r[0]) / (own.at[1] - own.at[0]);
-      const double trend = own.r[0] - step * own.at[0];
-      if (std::fabs(ri - trend) > std::max(tol, 0.5 * std::fabs(step) * own.at[0]) &&
-          std::fabs(ri - own.r[0]) > std::max(p.jump_min, p.jump_ratio * own.r[0]) &&
-          angle_to(v, i, own.idx[0]) <= p.max_angle)
-        mixed[i] = 2;
-      continue;
-    }
     const double ri = v.range[i];
     const double tol = p.range_tolerance + p.range_tolerance_ratio * ri + 3.0 * range_sigma;
+    // One-sided: beside a void (no return, or only rejected ones: the other surface was too weak
+    // to return on its own, e.g. a dark box in front of the ground), the side the return has is
+    // the only evidence. The side is the one with a return right next to this one or, if neither
+    // has, the only one with a return within the window; the other side must be a void, not the
+    // end of the scan (which says nothing about a missing surface).
+    const bool l_next = l.count > 0 && l.at[0] == 1, r_next = r.count > 0 && r.at[0] == 1;
+    const Nb* own = l_next != r_next ? (l_next ? &l : &r) : (l.count == 0) != (r.count == 0) ? (l.count ? &l : &r) : nullptr;
+    const Nb* gap = own == &l ? &r : &l;
+    if (p.one_sided && own && gap->beside_void && breaks_from_side(v, i, *own, *gap, tol, p)) {
+      mixed[i] = kStrongEdge;
+      continue;
+    }
+    // Two-sided: each side needs a return; and one of them a second one, for its rate of change
+    // (with one return on each side, a surface crossing the return looks like an edge).
+    if (l.count == 0 || r.count == 0 || (l.count < 2 && r.count < 2)) continue;
     // The two sides must be close: across a run of missing returns they may be different surfaces.
     if (l.at[0] + r.at[0] > p.max_span) continue;
     // 1. An edge: the nearest neighbours on the two sides are far apart...
@@ -125,18 +159,23 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
     // on the other side's surface (a thin post one return wide: its "side" is post, background).
     // The rate is scaled by the side's own acceleration (ratio of its last two steps, from three
     // returns, clamped to [1, 3]): ground seen at the ends of a scan line grows hyperbolically.
+    bool corner = false;
     const auto rate = [&](const Nb& nb, const Nb& other) {
       if (nb.count < 2) return 0.0;
       if (std::fabs(nb.r[1] - other.r[0]) < std::fabs(nb.r[1] - nb.r[0])) return 0.0;
       const double s1 = std::fabs(nb.r[1] - nb.r[0]) / (nb.at[1] - nb.at[0]);
       if (!nb.has3) return s1;
       const double s2 = std::fabs(nb.r3 - nb.r[1]) / (nb.at3 - nb.at[1]);
+      if (nb.at3 == 3 && s1 > std::max(p.jump_min, p.jump_ratio * nb.r[0]) && s1 > 3.0 * s2) {
+        corner = true;
+        return s2;
+      }
       return s2 > 1e-9 ? s1 * std::clamp(s1 / s2, 1.0, 3.0) : s1;
     };
     const double across = (fr.r[0] - nr.r[0]) / (l.at[0] + r.at[0]);
     const double side_rate = std::max(rate(l, r), rate(r, l));
     if (across <= p.weak_edge_factor * side_rate) continue;
-    const char strength = across > p.edge_factor * side_rate ? 2 : 1;
+    const char strength = across <= p.edge_factor * side_rate ? kWeakEdge : corner ? kCornerEdge : kStrongEdge;
     // 2. ...and the return lies strictly between them, on neither surface: not within the
     // tolerance of either side, nor of either side's linear trend (grazing ground changes range
     // quickly between lines, but smoothly, so it continues a trend; a veil continues none).
@@ -172,8 +211,8 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
 }
 
 namespace {
-/// Whether the return at `pos` lies smoothly between its immediate neighbours in this direction:
-/// 1 smooth, 2 rough, 0 unknown (a neighbour is missing).
+/// How the return at `pos` lies between its immediate neighbours in one direction.
+enum Smoothness : char { kUnknown = 0, kSmooth = 1, kRough = 2, kFlat = 3 };
 void mark_smooth(const ReturnsView& v, const std::vector<std::size_t>& seq, const MixedPixelParams& p,
                  double range_sigma, std::vector<char>& smooth) {
   for (std::size_t pos = 1; pos + 1 < seq.size(); ++pos) {
@@ -182,7 +221,23 @@ void mark_smooth(const ReturnsView& v, const std::vector<std::size_t>& seq, cons
     const double tol = p.range_tolerance + p.range_tolerance_ratio * v.range[i] + 3.0 * range_sigma;
     // Curved surfaces (ground at grazing incidence) bend by a few per cent of the local step.
     const double allow = tol + 0.05 * std::fabs(v.range[b] - v.range[a]);
-    smooth[i] = std::fabs(v.range[i] - 0.5 * (v.range[a] + v.range[b])) <= allow ? 1 : 2;
+    if (std::fabs(v.range[i] - 0.5 * (v.range[a] + v.range[b])) > allow)
+      smooth[i] = kRough;
+    else
+      smooth[i] = std::fabs(v.range[b] - v.range[a]) <= std::max(p.jump_min, p.jump_ratio * v.range[i]) ? kFlat : kSmooth;
+  }
+}
+
+/// The verdict from one direction's edge and the other direction's smoothness: a weak edge counts
+/// where the return is rough across (grazing ground is smooth across; a veil is not); a corner
+/// counts unless the return is flat across (the side face of a box, seen edge-on, is one return
+/// wide along the line but keeps its range from line to line; a veil changes with the background).
+bool is_mixed(char edge, char other_direction) {
+  switch (edge) {
+    case kStrongEdge: return true;
+    case kCornerEdge: return other_direction == kSmooth || other_direction == kRough;
+    case kWeakEdge: return other_direction == kRough;
+    default: return false;
   }
 }
 }  // namespace
@@ -211,16 +266,27 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
     organized = pass.line_begin[k + 1] - pass.line_begin[k] == pass.line_begin[1] - pass.line_begin[0];
   if (p.across_lines && organized) {
     const std::size_t width = pass.line_begin[1] - pass.line_begin[0];
+    // Lines follow each other in nod only within one sweep: where the nod reverses, the next line
+    // folds back over the last ones, so each sweep is a sequence of its own.
+    std::vector<std::size_t> sweep_begin{0};
+    double last_step = 0.0;
+    for (std::size_t k = 1; k < pass.line_count(); ++k) {
+      const double step = static_cast<double>(pass.nod[pass.line_begin[k]]) - pass.nod[pass.line_begin[k - 1]];
+      if (step * last_step < 0) sweep_begin.push_back(k);
+      if (step != 0) last_step = step;
+    }
+    sweep_begin.push_back(pass.line_count());
     for (std::size_t b = 0; b < width; ++b) {
-      seq.clear();
-      for (std::size_t k = 0; k < pass.line_count(); ++k) seq.push_back(pass.line_begin[k] + b);
-      mark_mixed_pixels(v, seq, p, sensor.range_sigma, coaxial, across);
-      mark_smooth(v, seq, p, sensor.range_sigma, smooth_across);
+      for (std::size_t s = 0; s + 1 < sweep_begin.size(); ++s) {
+        seq.clear();
+        for (std::size_t k = sweep_begin[s]; k < sweep_begin[s + 1]; ++k) seq.push_back(pass.line_begin[k] + b);
+        mark_mixed_pixels(v, seq, p, sensor.range_sigma, coaxial, across);
+        mark_smooth(v, seq, p, sensor.range_sigma, smooth_across);
+      }
     }
   }
   for (std::size_t i = 0; i < n; ++i)
-    mixed[i] = along[i] == 2 || across[i] == 2 || (along[i] == 1 && smooth_across[i] == 2) ||
-               (across[i] == 1 && smooth_along[i] == 2);
+    mixed[i] = is_mixed(along[i], smooth_across[i]) || is_mixed(across[i], smooth_along[i]);
   std::size_t count = 0;
   for (std::size_t i = 0; i < n; ++i)
     if (mixed[i]) {
@@ -257,7 +323,7 @@ std::vector<char> mixed_pixels_in_cloud(const std::vector<Eigen::Vector3d>& poin
     }
   }
   ReturnsView v{n, x.data(), y.data(), z.data(), ox.data(), oy.data(), oz.data(), range.data(),
-                amplitude.size() == n ? amplitude.data() : nullptr, usable.data()};
+                amplitude.size() == n ? amplitude.data() : nullptr, usable.data(), true};
   // Bands of the spherical range image: rows (elevation) sorted by azimuth, columns (azimuth)
   // sorted by elevation.
   const auto band = [&](double a) { return static_cast<long>(std::floor(a / resolution + 0.5)); };
@@ -279,8 +345,7 @@ std::vector<char> mixed_pixels_in_cloud(const std::vector<Eigen::Vector3d>& poin
     mark_smooth(v, seq, p, range_sigma, smooth_across);
   }
   for (std::size_t i = 0; i < n; ++i)
-    mixed[i] = along[i] == 2 || across[i] == 2 || (along[i] == 1 && smooth_across[i] == 2) ||
-               (across[i] == 1 && smooth_along[i] == 2);
+    mixed[i] = is_mixed(along[i], smooth_across[i]) || is_mixed(across[i], smooth_along[i]);
   return mixed;
 }
 

@@ -67,10 +67,23 @@ struct ReturnsView {
   const float* range = nullptr;                              ///< range of each return
   const float* amplitude = nullptr;                          ///< may be null or NaN: unknown
   const char* usable = nullptr;                              ///< candidate and neighbour (kept)
+  /// Whether the ends of a sequence are voids: in a cloud's range image the rows hold only the
+  /// returns there are, so a row ends where the returns stop; an organized scan's lines end at
+  /// the edge of its field of view, which says nothing about a missing surface.
+  bool ends_are_voids = false;
+};
+
+/// What `mark_mixed_pixels` found at a return, in one scan direction.
+enum MixedEdge : char {
+  kNoEdge = 0,
+  kWeakEdge = 1,    ///< flagged only where the return is rough in the other direction
+  kCornerEdge = 2,  ///< one side is a surface one return wide (its next step is an edge): flagged
+                    ///< unless the return is flat in the other direction (a face seen edge-on)
+  kStrongEdge = 3,  ///< flagged
 };
 
 /// Marks the mixed-pixel candidates among the returns of one sequence of indices in scan order
-/// (a scan line, or one beam across lines): mixed[i] = 2 at a strong edge, 1 at a weak one.
+/// (a scan line, or one beam across lines), as MixedEdge values.
 void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq, const MixedPixelParams& p,
                        double range_sigma, bool coaxial, std::vector<char>& mixed);
 
