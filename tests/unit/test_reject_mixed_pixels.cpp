@@ -23,6 +23,29 @@ SensorParams coaxial_sensor() {
   s.transceiver_separation = 0.0;
   return s;
 }
+
+/// An organized pass: one line per row of ranges (bearing 0.01 rad apart), lines 0.01 rad apart
+/// in nod, amplitude 100 everywhere.
+Pass grid_pass(const std::vector<std::vector<float>>& rows) {
+  Pass p;
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    p.line_begin.push_back(p.range.size());
+    for (std::size_t b = 0; b < rows[k].size(); ++b) {
+      p.line.push_back(static_cast<std::uint32_t>(k));
+      p.beam.push_back(static_cast<std::uint32_t>(b));
+      p.range.push_back(rows[k][b]);
+      p.bearing.push_back(0.01f * static_cast<float>(b));
+      p.amplitude.push_back(100.0f);
+      p.nod.push_back(0.01f * static_cast<float>(k));
+      p.stamp.push_back(1e-2 * static_cast<double>(k) + 1e-4 * static_cast<double>(b));
+    }
+  }
+  p.line_begin.push_back(p.range.size());
+  p.label.assign(p.range.size(), Label::kKept);
+  p.flags.assign(p.range.size(), 0);
+  register_pass(p, RegisterParams{}, SensorParams{}, Eigen::Isometry3d::Identity(), nullptr);
+  return p;
+}
 }  // namespace
 
 TEST(RejectMixedPixels, AVeilBetweenTwoSurfacesIsFlaggedAndTheSurfacesAreNot) {
@@ -64,6 +87,67 @@ TEST(RejectMixedPixels, AThinPostAndASmoothSlopeAreKept) {
   EXPECT_EQ(reject_mixed_pixels(q, MixedPixelParams{}, coaxial_sensor()), 0u);
 }
 
+TEST(RejectMixedPixels, BesideAVoidAReturnThatBreaksFromItsOneSurfaceIsAMixture) {
+  // Ground at grazing incidence (1 m below the sensor): ranges grow hyperbolically. Before it, a
+  // void (a surface too dark to return on its own); next to the void, the return whose footprint
+  // straddled the two.
+  const auto ground = [](int k) { return static_cast<float>(1.0 / std::sin(0.2 - 0.008 * k)); };
+  const auto scan = [&](float first, int voids) {
+    std::vector<float> r(static_cast<std::size_t>(voids), 0.0f);  // 0: no return
+    r.push_back(first);
+    for (int k = 1; k <= 12; ++k) r.push_back(ground(k));
+    Pass p = test::line_pass(r, std::vector<float>(r.size(), 100.0f));
+    reject_mixed_pixels(p, MixedPixelParams{}, coaxial_sensor());
+    return p.label[static_cast<std::size_t>(voids)];
+  };
+  // 0.4 m short of the ground's quadratic trend (its step there is 0.2 m): a mixture.
+  EXPECT_EQ(scan(ground(0) - 0.4f, 5), Label::kMixedPixel);
+  // On the trend: the first ground return after the void is valid.
+  EXPECT_EQ(scan(ground(0), 5), Label::kKept);
+  // The same return at the start of the scan line: the end of the field of view is not a void.
+  EXPECT_EQ(scan(ground(0) - 0.4f, 0), Label::kKept);
+  // Beside a void with ground beyond it, a return that continues that ground is valid.
+  std::vector<float> r;
+  for (int k = -8; k <= -3; ++k) r.push_back(ground(k));
+  r.push_back(0.0f);
+  r.push_back(0.0f);
+  r.push_back(ground(0) - 0.1f);  // off the right-hand trend, on the left-hand one across the void
+  for (int k = 1; k <= 12; ++k) r.push_back(ground(k) - 0.1f);
+  Pass p = test::line_pass(r, std::vector<float>(r.size(), 100.0f));
+  reject_mixed_pixels(p, MixedPixelParams{}, coaxial_sensor());
+  EXPECT_EQ(p.label[8], Label::kKept);
+}
+
+TEST(RejectMixedPixels, AtACornerTheVeilIsFlaggedAndAFaceSeenEdgeOnIsNot) {
+  // Along each line: a wall at 10 m, the return at the corner, one return on a box's side face
+  // seen edge-on (9.2 m) and then the box's front (8.6 m). The side's next step is itself an edge,
+  // so that side's rate says nothing; the other direction decides.
+  const auto lines = [](const std::vector<float>& corner) {
+    std::vector<std::vector<float>> rows;
+    for (float c : corner) {
+      std::vector<float> row(10, 10.0f);
+      row.push_back(c);
+      row.push_back(9.2f);
+      for (int b = 0; b < 9; ++b) row.push_back(8.6f);
+      rows.push_back(row);
+    }
+    return rows;
+  };
+  // A veil: its range changes from line to line with the split of the footprint.
+  Pass veil = grid_pass(lines({9.30f, 9.39f, 9.48f, 9.57f, 9.66f}));
+  reject_mixed_pixels(veil, MixedPixelParams{}, coaxial_sensor());
+  std::size_t flagged = 0;
+  for (std::size_t k = 0; k < veil.line_count(); ++k) {
+    flagged += veil.label[veil.line_begin[k] + 10] == Label::kMixedPixel;
+    EXPECT_EQ(veil.label[veil.line_begin[k] + 11], Label::kKept) << "the side face, line " << k;
+  }
+  // The first and last lines have no neighbour across on one side: unknown, kept.
+  EXPECT_EQ(flagged, 3u);
+  // A second face seen edge-on keeps its range from line to line: a surface, not a veil.
+  Pass face = grid_pass(lines(std::vector<float>(5, 9.6f)));
+  EXPECT_EQ(reject_mixed_pixels(face, MixedPixelParams{}, coaxial_sensor()), 0u);
+}
+
 TEST(RejectMixedPixels, GrazingGroundIsKept) {
   // Flat ground only, scanned near the horizon: ranges grow fast but smoothly across lines.
   sim::SimConfig c;
@@ -82,14 +166,16 @@ TEST(RejectMixedPixels, GrazingGroundIsKept) {
   register_pass(p, RegisterParams{}, s, make_transform(c.mount_translation, c.mount_rpy, c.rpy_order), &poses);
   const std::size_t kept = p.kept();
   ASSERT_GT(kept, 10000u);
-  // The budget for valid returns wrongly rejected is 1 %; measured 0.5 %, all at the ends of
-  // lines (bearing +/-83 deg, 25-30 m) where the nod reverses.
-  EXPECT_LT(reject_mixed_pixels(p, MixedPixelParams{}, s), kept / 100);
+  // The budget for valid returns wrongly rejected is 1 %. Measured 2 of 18,110 since each
+  // nod sweep is a sequence of its own (0.5 % before, all where the nod reverses and the lines
+  // fold back over each other).
+  EXPECT_LT(reject_mixed_pixels(p, MixedPixelParams{}, s), kept / 1000);
 }
 
 TEST(RejectMixedPixels, OnSimulatedScenesOfTwoSensorSettings) {
-  // The same seeds as bench/pcdp_mixed_bench (which adds the baselines). Setting B meets the
-  // issue's recall target of 0.90; setting A reaches 0.844 (docs/mixed_pixels.md).
+  // The same seeds as bench/pcdp_mixed_bench (which adds the baselines). Measured: A 0.901
+  // (630/699), B 0.923 (240/260), both at the target of 0.90; A is held at 0.895 here
+  // because 0.90 would be one return away (docs/mixed_pixels.md: seeds 4-9 too).
   for (char which : {'A', 'B'}) {
     std::uint64_t pos = 0, tp = 0, valid = 0, fp = 0;
     for (std::uint64_t seed = 1; seed <= 3; ++seed) {
@@ -120,7 +206,7 @@ TEST(RejectMixedPixels, OnSimulatedScenesOfTwoSensorSettings) {
     const double false_rate = static_cast<double>(fp) / static_cast<double>(valid);
     std::cout << which << ": recall " << recall << " (" << tp << "/" << pos << "), valid rejected " << 100 * false_rate << " %\n";
     EXPECT_LE(false_rate, 0.01) << which;
-    EXPECT_GE(recall, which == 'B' ? 0.90 : 0.83) << which;
+    EXPECT_GE(recall, which == 'B' ? 0.90 : 0.895) << which;
   }
 }
 
