@@ -21,10 +21,16 @@
 //     so f follows from r, and A must agree with the mixture: not brighter than
 //     A (1 + amplitude_ratio) + amplitude_slack (a non-coaxial receiver can only lose light, so a
 //     dimmer return is allowed unless the sensor is coaxial). Unknown (NaN) amplitudes skip this.
-// One-sided case (`one_sided`): beside a void (no return or only rejected returns within the
-// window: the other surface was too weak to return on its own), a return is a mixed pixel if it
-// breaks from the trend of its one visible surface by more than the tolerance, half that
-// surface's own step and the edge jump, with the beam geometry of 3.
+// Corners: where a side's first step is itself an edge, more than 3 times its next (a face seen
+// edge-on, one return wide, then another surface), the next step stands in for the side's rate;
+// such a candidate is a veil only where the return is not flat in the other direction.
+// One-sided case (`one_sided`): beside a void (the next position holds no return or only a
+// rejected one: the other surface was too weak to return on its own), a return is a mixed pixel
+// if it breaks from the trend of the surface on its other side (quadratic where that side is
+// three adjacent returns of one smooth surface, allowing a quarter step; else linear, half a step)
+// by more than the tolerance and the edge jump, does not continue the surface beyond the void,
+// and has the beam geometry of 3. The end of a scan is not a void (ReturnsView::ends_are_voids).
+// Across lines, each nod sweep is a sequence of its own (lines fold back where the nod reverses).
 // Amplitudes at or above amplitude_saturation (clipped) skip test 4.
 // Only the return itself is labelled `mixed_pixel`, never a window of neighbours.
 #pragma once
