@@ -267,14 +267,14 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
   if (p.across_lines && organized) {
     const std::size_t width = pass.line_begin[1] - pass.line_begin[0];
     // Lines follow each other in nod only within one sweep: where the nod reverses, the next line
-    // folds back over the last ones, so each sweep is a sequence of its own.
+    // folds back over the last ones, so each sweep is a sequence of its own. The reversal is read
+    // from three consecutive lines only (the extreme line ends its sweep), so a streamed window
+    // of `stream_reach` lines on each side splits exactly where the whole pass does; a reversal
+    // hidden in a plateau of equal encoder readings is not split.
     std::vector<std::size_t> sweep_begin{0};
-    double last_step = 0.0;
-    for (std::size_t k = 1; k < pass.line_count(); ++k) {
-      const double step = static_cast<double>(pass.nod[pass.line_begin[k]]) - pass.nod[pass.line_begin[k - 1]];
-      if (step * last_step < 0) sweep_begin.push_back(k);
-      if (step != 0) last_step = step;
-    }
+    const auto nod_of = [&](std::size_t k) { return static_cast<double>(pass.nod[pass.line_begin[k]]); };
+    for (std::size_t k = 2; k < pass.line_count(); ++k)
+      if ((nod_of(k) - nod_of(k - 1)) * (nod_of(k - 1) - nod_of(k - 2)) < 0) sweep_begin.push_back(k);
     sweep_begin.push_back(pass.line_count());
     for (std::size_t b = 0; b < width; ++b) {
       for (std::size_t s = 0; s + 1 < sweep_begin.size(); ++s) {
