@@ -95,8 +95,9 @@ double side_amp(const ReturnsView& v, const Nb& nb, const MixedPixelParams& p) {
 /// own), rather than continuing it (a valid return at the end of a surface) or continuing the
 /// surface across the void (grazing ground whose returns fade in and out near the detection
 /// limit). The trend is quadratic where `own` has three adjacent returns on one smooth surface
-/// (steps within a factor 3: ground at grazing incidence grows hyperbolically), allowing a
-/// quarter of its step; otherwise linear, allowing half a step per step away.
+/// (successive steps within a factor 1.5: ground at grazing incidence grows hyperbolically, and
+/// a quadratic's error there stays within a quarter step), allowing a quarter of its step;
+/// otherwise linear, allowing half a step per step away.
 bool breaks_from_side(const ReturnsView& v, std::size_t i, const Nb& own, const Nb& gap, double tol,
                       const MixedPixelParams& p) {
   if (own.count < 2 || own.at[1] != own.at[0] + 1) return false;
@@ -166,6 +167,8 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
       const double s1 = std::fabs(nb.r[1] - nb.r[0]) / (nb.at[1] - nb.at[0]);
       if (!nb.has3) return s1;
       const double s2 = std::fabs(nb.r3 - nb.r[1]) / (nb.at3 - nb.at[1]);
+      // A corner: the side's first step is itself an edge, beyond any smooth acceleration (a face
+      // seen edge-on, one return wide, then another surface); the next step stands in.
       if (nb.at3 == 3 && s1 > std::max(p.jump_min, p.jump_ratio * nb.r[0]) && s1 > 3.0 * s2) {
         corner = true;
         return s2;
