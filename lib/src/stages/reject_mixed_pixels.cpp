@@ -30,6 +30,9 @@ const OptionSchema& reject_mixed_pixels_schema() {
 }
 
 namespace {
+/// The smallest range step that makes an edge at range r (jump_min, or jump_ratio of r if larger).
+double jump_at(const MixedPixelParams& p, double r) { return std::max(p.jump_min, p.jump_ratio * r); }
+
 struct Nb {
   int count = 0;  ///< up to 2 neighbours used for the tests
   std::size_t idx[2] = {0, 0};
@@ -66,7 +69,7 @@ Nb neighbours(const ReturnsView& v, const std::vector<std::size_t>& seq, std::si
   nb.predicted = nb.r[0];
   if (nb.count == 2) {
     const double step = std::fabs(nb.r[1] - nb.r[0]) / (nb.at[1] - nb.at[0]);
-    if (step <= std::max(p.jump_min, p.jump_ratio * std::min(nb.r[0], nb.r[1])))
+    if (step <= jump_at(p, std::min(nb.r[0], nb.r[1])))
       nb.predicted = nb.r[0] - (nb.r[1] - nb.r[0]) / (nb.at[1] - nb.at[0]) * nb.at[0];
   }
   return nb;
@@ -85,7 +88,7 @@ double angle_to(const ReturnsView& v, std::size_t i, std::size_t j) {
 /// (beside a thin post the second one is the background).
 double side_amp(const ReturnsView& v, const Nb& nb, const MixedPixelParams& p) {
   if (!v.amplitude) return NAN;
-  if (nb.count == 1 || std::fabs(nb.r[1] - nb.r[0]) > std::max(p.jump_min, p.jump_ratio * nb.r[0]))
+  if (nb.count == 1 || std::fabs(nb.r[1] - nb.r[0]) > jump_at(p, nb.r[0]))
     return v.amplitude[nb.idx[0]];
   return 0.5 * (v.amplitude[nb.idx[0]] + v.amplitude[nb.idx[1]]);
 }
@@ -102,7 +105,7 @@ bool breaks_from_side(const ReturnsView& v, std::size_t i, const Nb& own, const 
                       const MixedPixelParams& p) {
   if (own.count < 2 || own.at[1] != own.at[0] + 1) return false;
   const double ri = v.range[i];
-  if (std::fabs(ri - own.r[0]) <= std::max(p.jump_min, p.jump_ratio * own.r[0])) return false;
+  if (std::fabs(ri - own.r[0]) <= jump_at(p, own.r[0])) return false;
   const double step = own.r[1] - own.r[0];
   double trend = own.r[0] - step * own.at[0], allow = 0.5 * std::fabs(step) * own.at[0];
   if (own.at[0] == 1 && own.has3 && own.at3 == 3) {
@@ -117,7 +120,7 @@ bool breaks_from_side(const ReturnsView& v, std::size_t i, const Nb& own, const 
   if (gap.count >= 2 && gap.at[1] == gap.at[0] + 1) {
     const double gstep = gap.r[1] - gap.r[0];
     if (std::fabs(ri - (gap.r[0] - gstep * gap.at[0])) <= std::max(tol, 0.5 * std::fabs(gstep) * gap.at[0])) return false;
-  } else if (gap.count >= 1 && std::fabs(ri - gap.r[0]) <= std::max(p.jump_min, p.jump_ratio * ri)) {
+  } else if (gap.count >= 1 && std::fabs(ri - gap.r[0]) <= jump_at(p, ri)) {
     return false;
   }
   return angle_to(v, i, own.idx[0]) <= p.max_angle;
@@ -153,7 +156,7 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
     const bool left_near = l.r[0] < r.r[0];
     const Nb& nr = left_near ? l : r;
     const Nb& fr = left_near ? r : l;
-    if (fr.r[0] - nr.r[0] <= std::max(p.jump_min, p.jump_ratio * nr.r[0])) continue;
+    if (fr.r[0] - nr.r[0] <= jump_at(p, nr.r[0])) continue;
     // ...and much faster than each side changes on its own (grazing ground changes range by
     // comparable steps everywhere; a veil hangs between two sides that change slowly).
     // A side's own rate of change, from its two nearest returns, unless the second one lies back
@@ -169,7 +172,7 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
       const double s2 = std::fabs(nb.r3 - nb.r[1]) / (nb.at3 - nb.at[1]);
       // A corner: the side's first step is itself an edge, beyond any smooth acceleration (a face
       // seen edge-on, one return wide, then another surface); the next step stands in.
-      if (nb.at3 == 3 && s1 > std::max(p.jump_min, p.jump_ratio * nb.r[0]) && s1 > 3.0 * s2) {
+      if (nb.at3 == 3 && s1 > jump_at(p, nb.r[0]) && s1 > 3.0 * s2) {
         corner = true;
         return s2;
       }
@@ -227,7 +230,7 @@ void mark_smooth(const ReturnsView& v, const std::vector<std::size_t>& seq, cons
     if (std::fabs(v.range[i] - 0.5 * (v.range[a] + v.range[b])) > allow)
       smooth[i] = kRough;
     else
-      smooth[i] = std::fabs(v.range[b] - v.range[a]) <= std::max(p.jump_min, p.jump_ratio * v.range[i]) ? kFlat : kSmooth;
+      smooth[i] = std::fabs(v.range[b] - v.range[a]) <= jump_at(p, v.range[i]) ? kFlat : kSmooth;
   }
 }
 
