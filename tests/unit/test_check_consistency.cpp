@@ -2,6 +2,7 @@
 
 #include <array>
 #include <cmath>
+#include <map>
 #include <random>
 #include <set>
 #include <stdexcept>
@@ -68,10 +69,14 @@ Voxel voxel_at(const Eigen::Vector3d& p, double res) {
           static_cast<std::int64_t>(std::floor(p.z() / res))};
 }
 // The definition, the slow way: every ray walked voxel by voxel (the stage's method before
-// 2026-11-24), then each return judged against every other pass's voxel sets.
-std::vector<std::vector<Label>> reference_labels(const std::vector<Pass>& passes, const ConsistencyParams& p) {
+// 2026-11-24), then each return judged against every other pass's voxel sets. `crossings`, if
+// given, receives the number of (ray, lonely voxel) pairs the walks visit (the stage's
+// ray_crossings): a lonely voxel holds a return with no other pass's hit within hit_radius.
+std::vector<std::vector<Label>> reference_labels(const std::vector<Pass>& passes, const ConsistencyParams& p,
+                                                 std::uint64_t* crossings = nullptr) {
   const double res = p.resolution;
   std::vector<std::set<Voxel>> hit(passes.size()), free(passes.size());
+  std::vector<std::map<Voxel, std::uint64_t>> visits(passes.size());  // rays of the pass through each voxel
   for (std::size_t k = 0; k < passes.size(); ++k) {
     const Pass& pass = passes[k];
     for (std::size_t i = 0; i < pass.size(); ++i) {
@@ -90,6 +95,7 @@ std::vector<std::vector<Label>> reference_labels(const std::vector<Pass>& passes
       }
       for (double t = 0.0; t < len - p.margin;) {
         free[k].insert(v);
+        ++visits[k][v];
         const int a = tmax[0] < tmax[1] ? (tmax[0] < tmax[2] ? 0 : 2) : (tmax[1] < tmax[2] ? 1 : 2);
         t = tmax[a];
         tmax[a] += tdelta[a];
@@ -98,6 +104,7 @@ std::vector<std::vector<Label>> reference_labels(const std::vector<Pass>& passes
     }
   }
   std::vector<std::vector<Label>> out;
+  std::set<Voxel> lonely;
   for (std::size_t k = 0; k < passes.size(); ++k) {
     std::vector<Label> labels = passes[k].label;
     for (std::size_t i = 0; i < passes[k].size(); ++i) {
@@ -113,11 +120,31 @@ std::vector<std::vector<Label>> reference_labels(const std::vector<Pass>& passes
           for (int dy = -h; dy <= h; ++dy)
             for (int dz = -h; dz <= h; ++dz) near_hit = near_hit || hit[j].count({v[0] + dx, v[1] + dy, v[2] + dz});
       }
+      if (!near_hit) lonely.insert(v);
       if (seen_free >= p.min_passes && !near_hit) labels[i] = Label::kInconsistent;
     }
     out.push_back(labels);
   }
+  if (crossings) {
+    *crossings = 0;
+    for (const auto& pass_visits : visits)
+      for (const Voxel& v : lonely) {
+        const auto it = pass_visits.find(v);
+        if (it != pass_visits.end()) *crossings += it->second;
+      }
+  }
   return out;
+}
+
+// Moves every point and origin onto a grid of 2^-14 m (61 um): the stage keeps rays in single
+// precision relative to the pass's first origin, which is then exact, so its crossings can be
+// compared one for one with the double-precision walk here (otherwise a ray grazing a voxel's
+// corner by a micrometre may count on one side only; the labels agree either way).
+void snap(std::vector<Pass>& passes) {
+  const auto q = [](double& v) { v = std::round(v * 16384.0) / 16384.0; };
+  for (Pass& p : passes)
+    for (std::size_t i = 0; i < p.size(); ++i)
+      for (double* v : {&p.x[i], &p.y[i], &p.z[i], &p.ox[i], &p.oy[i], &p.oz[i]}) q(*v);
 }
 
 // Passes that look at the same few walls and floor from different places, with stray returns
@@ -143,6 +170,7 @@ std::vector<Pass> random_scene(std::uint32_t seed, std::size_t npasses, const Ei
     Pass& p = passes.back();
     for (std::size_t i = 0; i < p.size(); ++i) p.ox[i] += 0.001 * static_cast<double>(i);
   }
+  snap(passes);
   return passes;
 }
 }  // namespace
@@ -173,10 +201,14 @@ TEST(CheckConsistency, LabelsEqualTheVoxelByVoxelDefinition) {
   std::size_t total_inconsistent = 0, total_lonely_kept = 0;
   for (const Case& c : cases) {
     std::vector<Pass> passes = random_scene(c.seed, 4, c.offset);
-    const auto want = reference_labels(passes, c.p);
+    std::uint64_t crossings = 0;
+    const auto want = reference_labels(passes, c.p, &crossings);
     ConsistencyEvidence ev(c.p);
     for (const Pass& p : passes) ev.add_pass(p);
     ev.finalize();
+    // Points in every direction make no scan-line fans: this checks the grid walk.
+    EXPECT_EQ(ev.stats().rays_in_fans, 0u);
+    EXPECT_EQ(ev.stats().crossings, crossings) << "seed " << c.seed;
     std::size_t labelled = 0;
     for (std::size_t k = 0; k < passes.size(); ++k) {
       labelled += ev.label(passes[k]);
@@ -192,6 +224,116 @@ TEST(CheckConsistency, LabelsEqualTheVoxelByVoxelDefinition) {
   // Not vacuous: both outcomes occur among the returns that needed free-space evidence.
   EXPECT_GT(total_inconsistent, 100u);
   EXPECT_GT(total_lonely_kept, 100u);
+}
+
+namespace {
+// Passes of a nodding scanner in a room (floor, four walls): scan lines of rays from a moving
+// origin (every return from its own point, up to `spread` m apart along a line), in a plane that
+// tilts as the line is scanned (skew, `twist` rad over a line), with some returns cut short
+// (veils, false ranges: lonely) and some strays right beyond the margin, at the fan's apex.
+std::vector<Pass> fan_scene(std::uint32_t seed, std::size_t npasses, double spread, double twist,
+                            const Eigen::Vector3d& offset = Eigen::Vector3d::Zero()) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  constexpr int kLines = 36, kBeams = 61;
+  std::vector<Pass> passes;
+  for (std::size_t k = 0; k < npasses; ++k) {
+    Pass p;
+    p.index = k;
+    const Eigen::Vector3d start(1.0 + 4.0 * u(rng), -3.0 + 6.0 * u(rng), 0.8 + u(rng));
+    const Eigen::Vector3d drive = Eigen::Vector3d(u(rng) - 0.5, u(rng) - 0.5, 0.0).normalized();
+    const double heading = 2.0 * M_PI * u(rng);
+    for (int l = 0; l < kLines; ++l) {
+      p.line_begin.push_back(p.size());
+      // The nod: the scan plane turns about the bearing-zero axis, down and back up.
+      const double nod0 = -0.6 + 1.2 * std::fabs(static_cast<double>(l) / (kLines / 2) - 1.0);
+      for (int b = 0; b < kBeams; ++b) {
+        const double f = static_cast<double>(b) / (kBeams - 1);
+        const double bearing = -1.7 + 3.4 * f, nod = nod0 + twist * f;
+        const Eigen::Vector3d o = start + drive * spread * (l + f);
+        const Eigen::Vector3d d_s(std::cos(bearing) * std::cos(nod), std::sin(bearing), std::cos(bearing) * std::sin(nod));
+        const Eigen::Vector3d d = Eigen::AngleAxisd(heading, Eigen::Vector3d::UnitZ()) * d_s;
+        double t = INFINITY;  // the room: floor z = 0, walls x = -4, 12, y = -8, 8, ceiling z = 4
+        const auto plane = [&](double oc, double dc, double at) {
+          if (std::fabs(dc) > 1e-9 && (at - oc) / dc > 0) t = std::min(t, (at - oc) / dc);
+        };
+        plane(o.z(), d.z(), 0.0);
+        plane(o.z(), d.z(), 4.0);
+        plane(o.x(), d.x(), -4.0);
+        plane(o.x(), d.x(), 12.0);
+        plane(o.y(), d.y(), -8.0);
+        plane(o.y(), d.y(), 8.0);
+        const double r = u(rng);
+        if (r < 0.04) t *= 0.2 + 0.7 * u(rng);        // a veil or false range
+        else if (r < 0.05) t = 0.55 + 0.5 * u(rng);   // a stray just beyond the margin
+        const Eigen::Vector3d q = o + t * d + offset, oo = o + offset;
+        p.x.push_back(q.x());
+        p.y.push_back(q.y());
+        p.z.push_back(q.z());
+        p.ox.push_back(oo.x());
+        p.oy.push_back(oo.y());
+        p.oz.push_back(oo.z());
+        p.label.push_back(Label::kKept);
+        p.range.push_back(static_cast<float>(t));
+      }
+    }
+    p.line_begin.push_back(p.size());
+    p.range_cal = p.range;
+    passes.push_back(std::move(p));
+  }
+  snap(passes);
+  return passes;
+}
+}  // namespace
+
+TEST(CheckConsistency, ScanLineFansFindExactlyTheCrossingsOfTheVoxelWalk) {
+  // Rays of scan lines are tested through their line's fan (plane and bearing bounds measured on
+  // the rays, then the exact ray-box test): every crossing of the voxel-by-voxel walk must be
+  // found, and no other, with origins that move along a line and planes that twist.
+  struct Case {
+    ConsistencyParams p;
+    std::uint32_t seed;
+    double spread, twist;
+    Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+  };
+  std::vector<Case> cases;
+  for (std::uint32_t seed : {1u, 2u, 3u}) {
+    ConsistencyParams p;
+    cases.push_back({p, seed, 0.0, 0.0});
+    cases.push_back({p, seed + 10, 0.01 * seed, 0.004 * seed});
+    p.hit_radius = seed - 1;
+    p.min_passes = 2;
+    p.resolution = 0.05 * seed;
+    p.margin = 0.2 * seed;
+    p.max_range = 8.0 + 3.0 * seed;
+    cases.push_back({p, seed + 20, 0.02, 0.01});
+  }
+  cases.push_back({ConsistencyParams{}, 31u, 0.01, 0.005, {500000.0, 4500000.0, 100.0}});
+  std::size_t total_inconsistent = 0, total_lonely_kept = 0;
+  std::uint64_t total_crossings = 0;
+  for (const Case& c : cases) {
+    std::vector<Pass> passes = fan_scene(c.seed, 4, c.spread, c.twist, c.offset);
+    std::uint64_t crossings = 0;
+    const auto want = reference_labels(passes, c.p, &crossings);
+    ConsistencyEvidence ev(c.p);
+    for (const Pass& p : passes) ev.add_pass(p);
+    ev.finalize();
+    const auto& s = ev.stats();
+    EXPECT_EQ(s.rays_in_fans, s.rays_walked) << "seed " << c.seed;  // every line made a fan
+    EXPECT_EQ(s.crossings, crossings) << "seed " << c.seed;
+    std::size_t labelled = 0;
+    for (std::size_t k = 0; k < passes.size(); ++k) {
+      labelled += ev.label(passes[k]);
+      for (std::size_t i = 0; i < passes[k].size(); ++i)
+        ASSERT_EQ(passes[k].label[i], want[k][i]) << "seed " << c.seed << " pass " << k << " return " << i;
+    }
+    total_inconsistent += labelled;
+    total_lonely_kept += s.lonely_returns - labelled;
+    total_crossings += crossings;
+  }
+  EXPECT_GT(total_inconsistent, 100u);
+  EXPECT_GT(total_lonely_kept, 100u);
+  EXPECT_GT(total_crossings, 1000u);
 }
 
 TEST(CheckConsistency, TheThreadCountDoesNotChangeTheLabels) {

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <mutex>
+#include <optional>
 #include <stdexcept>
 
 #include "../ordered_parallel.hpp"
@@ -250,6 +252,145 @@ struct LonelyCells {
     });
   }
 };
+
+// The pseudo-angle of the direction (x, y), in [0, 4): it increases with the angle and changes by
+// at most the angle's change in radians (in the first quadrant it is y / (x + y), whose derivative
+// in the angle is 1 / (1 + sin 2a), between 1/2 and 1; the other quadrants are this turned). It
+// orders a fan's rays without an atan2 per ray.
+inline double pseudo_angle(double x, double y) {
+  if (y >= 0) return x >= 0 ? (x + y > 0 ? y / (x + y) : 0.0) : 1.0 - x / (y - x);
+  return x < 0 ? 2.0 - y / (-x - y) : 3.0 + x / (x - y);
+}
+
+// A scan line's rays seen as a fan: a 2-D scanner's beams of one line leave from (nearly) one
+// point in (nearly) one plane, so a voxel can be crossed only by the few rays of the few lines
+// whose planes pass through it and whose bearings point at it. Bounds measured on the rays
+// themselves make every cut conservative, and each candidate is then tested exactly (crosses()),
+// so the fans find exactly the crossings a walk of every ray finds:
+//  - every point of every ray lies within `dev` of the plane through `o` with unit normal `n`
+//    (a segment's points are blends of its two ends, so the ends bound it);
+//  - every origin lies within `spread` of `o`; every direction makes an angle of at most
+//    asin(`tilt`) with the plane;
+//  - `order` holds the rays' pseudo-angles in the plane (axes u, v), sorted.
+struct Fan {
+  double o[3], n[3], u[3], v[3];
+  double dev = 0, spread = 0, tilt = 0;
+  std::vector<std::pair<double, std::uint32_t>> order;  // (pseudo-angle, position in the line's segments)
+};
+
+double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+// False when the line's rays do not make a usable fan (fewer than two, all nearly parallel, or
+// not flat: a cloud with no scan lines is one "line" of rays in every direction); their rays are
+// walked instead.
+bool make_fan(const std::vector<Segment>& segs, double max_dev, Fan& f) {
+  if (segs.size() < 2) return false;
+  const double* a = segs.front().d;
+  const double* b = a;
+  double least = 1.0;
+  for (const Segment& s : segs) {  // the direction furthest from the first (most parallel plane normal)
+    const double c = std::fabs(dot3(a, s.d));
+    if (c < least) {
+      least = c;
+      b = s.d;
+    }
+  }
+  double n[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+  const double nn = std::sqrt(dot3(n, n));
+  if (!(nn > 0.1)) return false;  // the rays span less than about 6 degrees
+  for (int k = 0; k < 3; ++k) {
+    f.n[k] = n[k] / nn;
+    f.o[k] = segs.front().o[k];
+  }
+  // u: the first direction made exactly perpendicular to n; v = n x u.
+  const double an = dot3(a, f.n);
+  double un = 0;
+  for (int k = 0; k < 3; ++k) {
+    f.u[k] = a[k] - an * f.n[k];
+    un += f.u[k] * f.u[k];
+  }
+  un = std::sqrt(un);
+  for (double& c : f.u) c /= un;
+  f.v[0] = f.n[1] * f.u[2] - f.n[2] * f.u[1];
+  f.v[1] = f.n[2] * f.u[0] - f.n[0] * f.u[2];
+  f.v[2] = f.n[0] * f.u[1] - f.n[1] * f.u[0];
+  f.dev = f.spread = f.tilt = 0;
+  f.order.clear();
+  const double on = dot3(f.o, f.n);
+  for (std::size_t i = 0; i < segs.size(); ++i) {
+    const Segment& s = segs[i];
+    const double dn = dot3(s.d, f.n), start = dot3(s.o, f.n) - on;
+    f.dev = std::max({f.dev, std::fabs(start), std::fabs(start + s.tend * dn)});
+    f.tilt = std::max(f.tilt, std::fabs(dn));
+    const double w[3] = {s.o[0] - f.o[0], s.o[1] - f.o[1], s.o[2] - f.o[2]};
+    f.spread = std::max(f.spread, dot3(w, w));
+    f.order.emplace_back(pseudo_angle(dot3(s.d, f.u), dot3(s.d, f.v)), static_cast<std::uint32_t>(i));
+  }
+  f.spread = std::sqrt(f.spread);
+  if (!(f.dev <= max_dev) || !(f.tilt <= 0.5)) return false;
+  if (!std::is_sorted(f.order.begin(), f.order.end())) std::sort(f.order.begin(), f.order.end());
+  return true;
+}
+
+// The lonely voxels' centres relative to `ref`, in single precision for the slab test that culls
+// most of them (its rounding is allowed for in `slack`).
+struct Centres {
+  double ref[3] = {0, 0, 0};
+  std::vector<float> x, y, z;
+  double reach = 0;  // the largest |centre - ref|, m
+};
+
+// f(j) for the lonely voxels j that some ray of the fan may cross (a superset of those crossed).
+template <class Lonely, class F>
+void for_each_in_fan(const Fan& fan, const Centres& c, const std::vector<Lonely>& lonely, double res,
+                     std::vector<float>& dist, F&& f) {
+  const std::size_t m = c.x.size();
+  const double half = 0.5 * std::sqrt(3.0) * res;  // the voxel's half diagonal
+  const double rel[3] = {fan.o[0] - c.ref[0], fan.o[1] - c.ref[1], fan.o[2] - c.ref[2]};
+  const float nx = static_cast<float>(fan.n[0]), ny = static_cast<float>(fan.n[1]), nz = static_cast<float>(fan.n[2]);
+  const float off = static_cast<float>(dot3(rel, fan.n));
+  // Single-precision error of the dot products: a few units in the last place of the largest terms.
+  const double slack = 1e-4 + 1e-6 * (c.reach + std::sqrt(dot3(rel, rel)));
+  const float tol = static_cast<float>(half + fan.dev + slack);
+  dist.resize(m);
+  float* d = dist.data();
+  const float *x = c.x.data(), *y = c.y.data(), *z = c.z.data();
+  for (std::size_t j = 0; j < m; ++j) d[j] = std::fabs(nx * x[j] + ny * y[j] + nz * z[j] - off);
+  for (std::size_t j = 0; j < m; ++j) {
+    if (d[j] > tol) continue;
+    double w[3];
+    for (int a = 0; a < 3; ++a) w[a] = (static_cast<double>(lonely[j].v[a]) + 0.5) * res - fan.o[a];
+    const double D = std::sqrt(dot3(w, w)), off_plane = std::fabs(dot3(w, fan.n));
+    const auto all = [&] {
+      for (const auto& r : fan.order) f(j, r.second);
+    };
+    if (!(D > half + 2.0 * fan.spread + 1e-9)) {  // the voxel is at the fan's apex
+      all();
+      continue;
+    }
+    // A ray i that meets the voxel at p: p - o = (o_i - o) + t d_i with t > spread, so d_i is within
+    // asin(spread / |p - o|) of p - o, which is within asin(half / D) of the centre's direction.
+    const double alpha = std::asin(std::min(1.0, fan.spread / (D - half))) + std::asin(std::min(1.0, half / D));
+    // In the plane: two unit vectors at angle alpha whose projections are at least m long project
+    // to directions at most 2 asin(sin(alpha / 2) / m) apart.
+    const double tilt = std::max(fan.tilt, off_plane / D);
+    const double s = std::sin(0.5 * alpha) / std::sqrt(std::max(0.0, 1.0 - tilt * tilt));
+    if (!(s < 0.5)) {
+      all();
+      continue;
+    }
+    const double theta = 2.0 * std::asin(s) * (1.0 + 1e-9) + 1e-12;
+    const double psi = pseudo_angle(dot3(w, fan.u), dot3(w, fan.v));
+    const auto range = [&](double lo, double hi) {
+      auto it = std::lower_bound(fan.order.begin(), fan.order.end(), std::make_pair(lo, std::uint32_t{0}));
+      for (; it != fan.order.end() && it->first <= hi; ++it) f(j, it->second);
+    };
+    const double lo = psi - theta, hi = psi + theta;
+    range(std::max(lo, 0.0), std::min(hi, 4.0));
+    if (lo < 0.0) range(lo + 4.0, 4.0);
+    if (hi > 4.0) range(0.0, hi - 4.0);
+  }
+}
 }  // namespace
 
 ConsistencyEvidence::PassRays ConsistencyEvidence::collect(const Pass& pass) const {
@@ -273,9 +414,13 @@ ConsistencyEvidence::PassRays ConsistencyEvidence::collect(const Pass& pass) con
   }
   out.hit = VoxelSet(bounds, 0x27d4eb2fu);
   out.rays.reserve(n);
+  out.lines.reserve(pass.line_count() + 1);
   VoxelSet::Cursor hit(out.hit);
   const double* a = out.anchor;
+  std::size_t line = 0;  // the next line to start
   for (std::size_t i = 0; i < pass.size(); ++i) {
+    for (; line < pass.line_count() && pass.line_begin[line] <= i; ++line)
+      out.lines.push_back(static_cast<std::uint32_t>(out.rays.size()));
     if (!pass.is_kept(i) || !std::isfinite(pass.x[i])) continue;
     const std::uint32_t x = voxel_coord(pass.x[i], res), y = voxel_coord(pass.y[i], res), z = voxel_coord(pass.z[i], res);
     Ray r;
@@ -291,6 +436,9 @@ ConsistencyEvidence::PassRays ConsistencyEvidence::collect(const Pass& pass) con
     if (origin) hit.insert(x, y, z);
     out.rays.push_back(r);
   }
+  for (; line < pass.line_count(); ++line) out.lines.push_back(static_cast<std::uint32_t>(out.rays.size()));
+  if (out.lines.empty()) out.lines.push_back(0);  // no lines: one of every ray
+  out.lines.push_back(static_cast<std::uint32_t>(out.rays.size()));
   return out;
 }
 
@@ -337,6 +485,22 @@ bool ConsistencyEvidence::other_hit_near(std::uint64_t voxel, std::uint64_t bit)
       for (int dx = -h; dx <= h; ++dx)
         if (hit(dx, dy, dz)) return true;
   return false;
+}
+
+std::vector<ConsistencyEvidence::Chunk> ConsistencyEvidence::line_chunks() const {
+  // Whole lines of a few thousand rays in all.
+  constexpr std::size_t kRays = 4096;
+  std::vector<Chunk> out;
+  for (std::size_t k = 0; k < passes_.size(); ++k) {
+    const std::vector<std::uint32_t>& lines = passes_[k].lines;
+    for (std::size_t b = 0; b + 1 < lines.size();) {
+      std::size_t e = b + 1;
+      while (e + 1 < lines.size() && lines[e] - lines[b] < kRays) ++e;
+      out.push_back({k, b, e});
+      b = e;
+    }
+  }
+  return out;
 }
 
 std::vector<ConsistencyEvidence::Chunk> ConsistencyEvidence::chunks() const {
@@ -395,33 +559,64 @@ void ConsistencyEvidence::find_lonely(unsigned threads) {
 }
 
 void ConsistencyEvidence::walk_rays(unsigned threads) {
-  // Cells of 4 voxels: on the benchmark's eight passes and on Kurt3D, 2 and 8 were slower (fewer
-  // exact tests but more cell steps, or the reverse).
-  const LonelyCells cells(lonely_, 4, p_.resolution);
   const double res = p_.resolution;
+  // The lonely voxels' centres for the fans' slab test, relative to the first pass's anchor.
+  Centres centres;
+  if (!passes_.empty())
+    for (int a = 0; a < 3; ++a) centres.ref[a] = passes_.front().anchor[a];
+  for (const Lonely& l : lonely_) {
+    double c[3];
+    for (int a = 0; a < 3; ++a) c[a] = (static_cast<double>(l.v[a]) + 0.5) * res - centres.ref[a];
+    centres.x.push_back(static_cast<float>(c[0]));
+    centres.y.push_back(static_cast<float>(c[1]));
+    centres.z.push_back(static_cast<float>(c[2]));
+    centres.reach = std::max(centres.reach, std::sqrt(dot3(c, c)));
+  }
+  // Lines whose rays make no fan walk them over a coarse grid of the lonely voxels' cells, built
+  // the first time a line needs it. Cells of 4 voxels: on the benchmark's eight passes and on
+  // Kurt3D, 2 and 8 were slower (fewer exact tests but more cell steps, or the reverse).
+  std::once_flag cells_built;
+  std::optional<LonelyCells> cells;
+  // A fan whose rays stray further than this from its plane would pass most voxels' slab test.
+  const double max_dev = std::max(0.5, 4.0 * res);
   struct Crossed {
     std::vector<std::uint32_t> lonely;  // positions in lonely_
-    std::uint64_t walked = 0;
+    std::uint64_t walked = 0, fanned = 0;
   };
-  const std::vector<Chunk> work = chunks();
+  const std::vector<Chunk> work = line_chunks();
   detail::ordered_parallel<Crossed>(
       work.size(), threads, 2 * threads,
       [&](std::size_t w) {
         Crossed out;
         const PassRays& pr = passes_[work[w].pass];
-        Segment s;
-        for (std::size_t i = work[w].begin; i < work[w].end; ++i) {
-          if (!segment_of(pr.rays[i], pr.anchor, p_, s)) continue;
-          ++out.walked;
-          cells.for_each_near(s, res, [&](const LonelyCells::Box& b) {
-            if (crosses(s, b.v, res)) out.lonely.push_back(b.index);
-          });
+        std::vector<Segment> segs;
+        std::vector<float> dist;
+        Fan fan;
+        for (std::size_t k = work[w].begin; k < work[w].end; ++k) {
+          segs.clear();
+          Segment s;
+          for (std::uint32_t i = pr.lines[k]; i < pr.lines[k + 1]; ++i)
+            if (segment_of(pr.rays[i], pr.anchor, p_, s)) segs.push_back(s);
+          out.walked += segs.size();
+          if (make_fan(segs, max_dev, fan)) {
+            out.fanned += segs.size();
+            for_each_in_fan(fan, centres, lonely_, res, dist, [&](std::size_t j, std::uint32_t i) {
+              if (crosses(segs[i], lonely_[j].v, res)) out.lonely.push_back(static_cast<std::uint32_t>(j));
+            });
+            continue;
+          }
+          std::call_once(cells_built, [&] { cells.emplace(lonely_, 4, res); });
+          for (const Segment& g : segs)
+            cells->for_each_near(g, res, [&](const LonelyCells::Box& b) {
+              if (crosses(g, b.v, res)) out.lonely.push_back(b.index);
+            });
         }
         return out;
       },
       [&](std::size_t w, Crossed&& c) {
         const std::uint64_t bit = passes_[work[w].pass].bit;
         stats_.rays_walked += c.walked;
+        stats_.rays_in_fans += c.fanned;
         stats_.crossings += c.lonely.size();
         for (const std::uint32_t i : c.lonely) lonely_[i].free |= bit;
       });
@@ -479,6 +674,7 @@ class CheckConsistencyStage final : public Stage {
     report.metrics["lonely_voxels"] = static_cast<double>(s.lonely_voxels);
     report.metrics["rays_walked"] = static_cast<double>(s.rays_walked);
     report.metrics["ray_crossings"] = static_cast<double>(s.crossings);
+    report.metrics["rays_in_fans"] = static_cast<double>(s.rays_in_fans);
   }
 
  private:

@@ -55,6 +55,8 @@ class ConsistencyEvidence {
     VoxelSet hit{0x27d4eb2fu};
     double anchor[3] = {0.0, 0.0, 0.0};
     std::vector<Ray> rays;
+    /// Rays of the pass's scan line k are [lines[k], lines[k+1]).
+    std::vector<std::uint32_t> lines;
   };
   /// The evidence of one pass (const: any thread, several passes at once).
   PassRays collect(const Pass& pass) const;
@@ -76,6 +78,7 @@ class ConsistencyEvidence {
     std::uint64_t lonely_voxels = 0;
     std::uint64_t rays_walked = 0;    ///< rays that give free-space evidence (margin < length <= max_range)
     std::uint64_t crossings = 0;      ///< (ray, lonely voxel) pairs found crossed
+    std::uint64_t rays_in_fans = 0;   ///< of rays_walked, those tested through their scan line's fan (the rest walk a grid)
   };
   const Stats& stats() const { return stats_; }
 
@@ -90,9 +93,10 @@ class ConsistencyEvidence {
     std::uint64_t free = 0;       ///< passes whose rays crossed it
   };
   struct Chunk {
-    std::size_t pass, begin, end;  ///< rays [begin, end) of passes_[pass]
+    std::size_t pass, begin, end;  ///< rays (chunks()) or lines (line_chunks()) [begin, end) of passes_[pass]
   };
   std::vector<Chunk> chunks() const;
+  std::vector<Chunk> line_chunks() const;
   bool other_hit_near(std::uint64_t voxel, std::uint64_t bit) const;
   void find_lonely(unsigned threads);
   void walk_rays(unsigned threads);
