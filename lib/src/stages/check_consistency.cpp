@@ -56,24 +56,35 @@ std::int64_t unwrap(std::uint32_t wrapped, double approx) {
 
 // A ray o + t d (d a unit vector, 0 <= t < tend) in double precision, from a stored Ray.
 struct Segment {
-  double o[3], d[3], inv[3], tend;  // inv: 1 / d, for the cell walks (the exact test divides)
+  double o[3], d[3], inv[3], tend;  // inv: 1 / d, for the cell walks (set_inverse; the exact test divides)
 };
 // False when the ray gives no free-space evidence: no origin, too short or too long.
-bool segment_of(const ConsistencyEvidence::Ray& r, const double anchor[3], const ConsistencyParams& p, Segment& s) {
+// A ray's origin, its vector to the return (e - o) and length: false when the ray gives no
+// free-space evidence (no origin, too short or too long).
+struct RayExtent {
+  double o[3], dl[3], len;
+  std::uint32_t i;  // position in the pass's rays
+};
+bool extent_of(const ConsistencyEvidence::Ray& r, const double anchor[3], const ConsistencyParams& p, RayExtent& x) {
   double len2 = 0.0;
   for (int a = 0; a < 3; ++a) {
-    s.o[a] = anchor[a] + static_cast<double>(r.o[a]);
-    s.d[a] = static_cast<double>(r.e[a]) - static_cast<double>(r.o[a]);
-    len2 += s.d[a] * s.d[a];
+    x.o[a] = anchor[a] + static_cast<double>(r.o[a]);
+    x.dl[a] = static_cast<double>(r.e[a]) - static_cast<double>(r.o[a]);
+    len2 += x.dl[a] * x.dl[a];
   }
-  const double len = std::sqrt(len2);
-  if (!(len > p.margin) || len > p.max_range) return false;  // also false for a NaN origin
+  x.len = std::sqrt(len2);
+  return x.len > p.margin && !(x.len > p.max_range);  // also false for a NaN origin
+}
+void segment_of(const RayExtent& x, const ConsistencyParams& p, Segment& s) {
   for (int a = 0; a < 3; ++a) {
-    s.d[a] /= len;
-    s.inv[a] = 1.0 / s.d[a];
+    s.o[a] = x.o[a];
+    s.d[a] = x.dl[a] / x.len;
   }
-  s.tend = len - p.margin;
-  return true;
+  s.tend = x.len - p.margin;
+}
+// Fills s.inv, which only the grid walks need.
+void set_inverse(Segment& s) {
+  for (int a = 0; a < 3; ++a) s.inv[a] = 1.0 / s.d[a];
 }
 
 // Whether the ray enters voxel v (signed voxel indices) for some 0 <= t < tend: exactly the
@@ -282,69 +293,153 @@ double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * 
 
 // False when the line's rays do not make a usable fan (fewer than two, all nearly parallel, or
 // not flat: a cloud with no scan lines is one "line" of rays in every direction); their rays are
-// walked instead.
-bool make_fan(const std::vector<Segment>& segs, double max_dev, Fan& f) {
-  if (segs.size() < 2) return false;
-  const double* a = segs.front().d;
-  const double* b = a;
-  double least = 1.0;
-  for (const Segment& s : segs) {  // the direction furthest from the first (most parallel plane normal)
-    const double c = std::fabs(dot3(a, s.d));
-    if (c < least) {
-      least = c;
-      b = s.d;
+// walked instead. One square root (in extent_of) and one division a ray: the bounds use each
+// ray's whole vector o .. e (its segment stops short of e) and compare ratios by multiplying.
+bool make_fan(const std::vector<RayExtent>& rays, double max_dev, Fan& f) {
+  if (rays.size() < 2) return false;
+  const double* a = rays.front().dl;
+  const double a2 = dot3(a, a);
+  // The ray most nearly perpendicular to the first: least (a . d)^2 / |d|^2.
+  const RayExtent* b = &rays.front();
+  double num = a2 * a2, den = a2;
+  for (const RayExtent& x : rays) {
+    const double c = dot3(a, x.dl), d2 = x.len * x.len;
+    if (c * c * den < num * d2) {
+      num = c * c;
+      den = d2;
+      b = &x;
     }
   }
-  double n[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+  const double* bd = b->dl;
+  const double n[3] = {a[1] * bd[2] - a[2] * bd[1], a[2] * bd[0] - a[0] * bd[2], a[0] * bd[1] - a[1] * bd[0]};
   const double nn = std::sqrt(dot3(n, n));
-  if (!(nn > 0.1)) return false;  // the rays span less than about 6 degrees
+  if (!(nn > 0.1 * std::sqrt(a2) * b->len)) return false;  // the rays span less than about 6 degrees
   for (int k = 0; k < 3; ++k) {
     f.n[k] = n[k] / nn;
-    f.o[k] = segs.front().o[k];
+    f.o[k] = rays.front().o[k];
   }
-  // u: the first direction made exactly perpendicular to n; v = n x u.
-  const double an = dot3(a, f.n);
+  // u: away from the middle ray, made exactly perpendicular to n; v = n x u. The pseudo-angles
+  // then run from 0 to 4 with the middle ray at 2, so a line of less than a full turn does not
+  // wrap: its rays are in order, or in reverse order.
+  const double* m = rays[rays.size() / 2].dl;
+  const double mn = dot3(m, f.n);
   double un = 0;
   for (int k = 0; k < 3; ++k) {
-    f.u[k] = a[k] - an * f.n[k];
+    f.u[k] = mn * f.n[k] - m[k];
     un += f.u[k] * f.u[k];
   }
   un = std::sqrt(un);
+  if (!(un > 0)) return false;
   for (double& c : f.u) c /= un;
   f.v[0] = f.n[1] * f.u[2] - f.n[2] * f.u[1];
   f.v[1] = f.n[2] * f.u[0] - f.n[0] * f.u[2];
   f.v[2] = f.n[0] * f.u[1] - f.n[1] * f.u[0];
-  f.dev = f.spread = f.tilt = 0;
+  f.dev = f.spread = 0;
   f.order.clear();
   const double on = dot3(f.o, f.n);
-  for (std::size_t i = 0; i < segs.size(); ++i) {
-    const Segment& s = segs[i];
-    const double dn = dot3(s.d, f.n), start = dot3(s.o, f.n) - on;
-    f.dev = std::max({f.dev, std::fabs(start), std::fabs(start + s.tend * dn)});
-    f.tilt = std::max(f.tilt, std::fabs(dn));
-    const double w[3] = {s.o[0] - f.o[0], s.o[1] - f.o[1], s.o[2] - f.o[2]};
+  double tilt_num = 0, tilt_den = 1;  // the largest |d . n| / |d|
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    const RayExtent& x = rays[i];
+    const double dn = dot3(x.dl, f.n), start = dot3(x.o, f.n) - on;
+    f.dev = std::max({f.dev, std::fabs(start), std::fabs(start + dn)});
+    if (std::fabs(dn) * tilt_den > tilt_num * x.len) {
+      tilt_num = std::fabs(dn);
+      tilt_den = x.len;
+    }
+    const double w[3] = {x.o[0] - f.o[0], x.o[1] - f.o[1], x.o[2] - f.o[2]};
     f.spread = std::max(f.spread, dot3(w, w));
-    f.order.emplace_back(pseudo_angle(dot3(s.d, f.u), dot3(s.d, f.v)), static_cast<std::uint32_t>(i));
+    f.order.emplace_back(pseudo_angle(dot3(x.dl, f.u), dot3(x.dl, f.v)), static_cast<std::uint32_t>(i));
   }
-  f.spread = std::sqrt(f.spread);
+  // Rounded up a little: the bounds are compared with values computed in other ways.
+  f.tilt = tilt_num / tilt_den * (1.0 + 1e-12);
+  f.spread = std::sqrt(f.spread) * (1.0 + 1e-12);
   if (!(f.dev <= max_dev) || !(f.tilt <= 0.5)) return false;
-  if (!std::is_sorted(f.order.begin(), f.order.end())) std::sort(f.order.begin(), f.order.end());
+  if (!std::is_sorted(f.order.begin(), f.order.end())) {
+    std::reverse(f.order.begin(), f.order.end());  // lines scanned the other way round
+    if (!std::is_sorted(f.order.begin(), f.order.end())) std::sort(f.order.begin(), f.order.end());
+  }
   return true;
 }
 
-// The lonely voxels' centres relative to `ref`, in single precision for the slab test that culls
-// most of them (its rounding is allowed for in `slack`).
+// The lonely voxels' centres relative to `ref`, in single precision for the slab tests that cull
+// most of them (their rounding is allowed for), grouped in clusters of up to 16 neighbouring
+// voxels so that a fan's plane is tested against a cluster's bounding sphere first (a fan's
+// slab holds about 1 % of the voxels).
 struct Centres {
   double ref[3] = {0, 0, 0};
-  std::vector<float> x, y, z;
-  double reach = 0;  // the largest |centre - ref|, m
+  double reach = 0;                  // the largest |centre - ref|, m
+  std::vector<std::uint32_t> id;     // position in the lonely list, in cluster order
+  std::vector<float> x, y, z;        // centres, in cluster order
+  std::vector<std::uint32_t> begin;  // cluster k is [begin[k], begin[k + 1])
+  std::vector<float> cx, cy, cz, r;  // clusters' bounding spheres (of the centres)
+
+  template <class Lonely>
+  Centres(const std::vector<Lonely>& lonely, double res, const double origin[3]) {
+    for (int a = 0; a < 3; ++a) ref[a] = origin[a];
+    // Neighbours first: ordered by the 8-voxel cube they fall in, cubes in Morton order.
+    const auto morton = [](std::uint64_t c[3]) {
+      std::uint64_t m = 0;
+      for (int b = 0; b < 21; ++b)
+        for (int a = 0; a < 3; ++a) m |= ((c[a] >> b) & 1u) << (3 * b + a);
+      return m;
+    };
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
+    order.reserve(lonely.size());
+    for (std::size_t j = 0; j < lonely.size(); ++j) {
+      std::uint64_t c[3];
+      for (int a = 0; a < 3; ++a) c[a] = static_cast<std::uint64_t>(lonely[j].v[a] >> 3) & 0x1fffff;
+      order.emplace_back(morton(c), static_cast<std::uint32_t>(j));
+    }
+    std::sort(order.begin(), order.end());
+    std::int64_t lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+    const auto close = [&] {
+      double mid[3], r2 = 0;
+      for (int a = 0; a < 3; ++a) {
+        mid[a] = (0.5 * static_cast<double>(lo[a] + hi[a]) + 0.5) * res - ref[a];
+        const double e = 0.5 * static_cast<double>(hi[a] - lo[a]) * res;
+        r2 += e * e;
+      }
+      cx.push_back(static_cast<float>(mid[0]));
+      cy.push_back(static_cast<float>(mid[1]));
+      cz.push_back(static_cast<float>(mid[2]));
+      r.push_back(static_cast<float>(std::sqrt(r2)));
+    };
+    for (const auto& [key, j] : order) {
+      const std::int64_t* v = lonely[j].v;
+      const std::size_t size = id.size() - (begin.empty() ? 0 : begin.back());
+      bool fits = !begin.empty() && size < 16;
+      for (int a = 0; a < 3 && fits; ++a) fits = std::max(hi[a], v[a]) - std::min(lo[a], v[a]) < 16;
+      if (fits) {
+        for (int a = 0; a < 3; ++a) {
+          lo[a] = std::min(lo[a], v[a]);
+          hi[a] = std::max(hi[a], v[a]);
+        }
+      } else {
+        if (!begin.empty()) close();
+        begin.push_back(static_cast<std::uint32_t>(id.size()));
+        for (int a = 0; a < 3; ++a) lo[a] = hi[a] = v[a];
+      }
+      id.push_back(j);
+      double c[3];
+      for (int a = 0; a < 3; ++a) c[a] = (static_cast<double>(v[a]) + 0.5) * res - ref[a];
+      x.push_back(static_cast<float>(c[0]));
+      y.push_back(static_cast<float>(c[1]));
+      z.push_back(static_cast<float>(c[2]));
+      reach = std::max(reach, std::sqrt(dot3(c, c)));
+    }
+    if (!begin.empty()) close();
+    begin.push_back(static_cast<std::uint32_t>(id.size()));
+  }
 };
 
-// f(j) for the lonely voxels j that some ray of the fan may cross (a superset of those crossed).
+// asin(x) <= x asin(1/2) / (1/2) for 0 <= x <= 1/2 (asin is convex there); the constant rounded up.
+constexpr double kAsinSlope = 1.0472;
+
+// f(j, i) for the lonely voxels j (positions in the lonely list) and rays i (positions in the
+// fan's segments) where the ray may cross the voxel: a superset of the crossings.
 template <class Lonely, class F>
 void for_each_in_fan(const Fan& fan, const Centres& c, const std::vector<Lonely>& lonely, double res,
                      std::vector<float>& dist, F&& f) {
-  const std::size_t m = c.x.size();
   const double half = 0.5 * std::sqrt(3.0) * res;  // the voxel's half diagonal
   const double rel[3] = {fan.o[0] - c.ref[0], fan.o[1] - c.ref[1], fan.o[2] - c.ref[2]};
   const float nx = static_cast<float>(fan.n[0]), ny = static_cast<float>(fan.n[1]), nz = static_cast<float>(fan.n[2]);
@@ -352,43 +447,43 @@ void for_each_in_fan(const Fan& fan, const Centres& c, const std::vector<Lonely>
   // Single-precision error of the dot products: a few units in the last place of the largest terms.
   const double slack = 1e-4 + 1e-6 * (c.reach + std::sqrt(dot3(rel, rel)));
   const float tol = static_cast<float>(half + fan.dev + slack);
-  dist.resize(m);
+  const std::size_t nc = c.r.size();
+  dist.resize(nc);
   float* d = dist.data();
-  const float *x = c.x.data(), *y = c.y.data(), *z = c.z.data();
-  for (std::size_t j = 0; j < m; ++j) d[j] = std::fabs(nx * x[j] + ny * y[j] + nz * z[j] - off);
-  for (std::size_t j = 0; j < m; ++j) {
-    if (d[j] > tol) continue;
-    double w[3];
-    for (int a = 0; a < 3; ++a) w[a] = (static_cast<double>(lonely[j].v[a]) + 0.5) * res - fan.o[a];
-    const double D = std::sqrt(dot3(w, w)), off_plane = std::fabs(dot3(w, fan.n));
-    const auto all = [&] {
-      for (const auto& r : fan.order) f(j, r.second);
-    };
-    if (!(D > half + 2.0 * fan.spread + 1e-9)) {  // the voxel is at the fan's apex
-      all();
-      continue;
+  for (std::size_t k = 0; k < nc; ++k) d[k] = std::fabs(nx * c.cx[k] + ny * c.cy[k] + nz * c.cz[k] - off) - c.r[k];
+  for (std::size_t k = 0; k < nc; ++k) {
+    if (d[k] > tol) continue;
+    for (std::uint32_t q = c.begin[k]; q < c.begin[k + 1]; ++q) {
+      if (std::fabs(nx * c.x[q] + ny * c.y[q] + nz * c.z[q] - off) > tol) continue;
+      const std::size_t j = c.id[q];
+      double w[3];
+      for (int a = 0; a < 3; ++a) w[a] = (static_cast<double>(lonely[j].v[a]) + 0.5) * res - fan.o[a];
+      const double D = std::sqrt(dot3(w, w)), off_plane = std::fabs(dot3(w, fan.n));
+      // A ray i that meets the voxel at p: p - o = (o_i - o) + t d_i with t > spread (so the voxel
+      // must be further than half + 2 spread), so d_i is within asin(spread / |p - o|) of p - o,
+      // which is within asin(half / D) of the centre's direction: alpha <= asin x1 + asin x2.
+      const double x1 = fan.spread / (D - half), x2 = half / D;
+      // In the plane: two unit vectors at angle alpha whose projections are at least m long
+      // project to directions at most 2 asin(sin(alpha / 2) / m) apart; sin(a) <= a and the
+      // bound on asin above make that theta below, when every asin's argument is at most 1/2.
+      const double tilt = std::max(fan.tilt, off_plane / D);
+      const double m = std::sqrt(std::max(0.0, 1.0 - tilt * tilt));
+      const double half_alpha = 0.5 * kAsinSlope * (x1 + x2);
+      if (!(D > half + 2.0 * fan.spread + 1e-9) || !(x1 <= 0.5 && x2 <= 0.5 && half_alpha < 0.5 * m)) {
+        for (const auto& ray : fan.order) f(j, ray.second);  // near the apex, or a wide cone
+        continue;
+      }
+      const double theta = 2.0 * kAsinSlope * half_alpha / m * (1.0 + 1e-9) + 1e-12;
+      const double psi = pseudo_angle(dot3(w, fan.u), dot3(w, fan.v));
+      const auto range = [&](double lo, double hi) {
+        auto it = std::lower_bound(fan.order.begin(), fan.order.end(), std::make_pair(lo, std::uint32_t{0}));
+        for (; it != fan.order.end() && it->first <= hi; ++it) f(j, it->second);
+      };
+      const double lo = psi - theta, hi = psi + theta;  // theta < 1.05: no wrap on both sides
+      range(std::max(lo, 0.0), std::min(hi, 4.0));
+      if (lo < 0.0) range(lo + 4.0, 4.0);
+      if (hi > 4.0) range(0.0, hi - 4.0);
     }
-    // A ray i that meets the voxel at p: p - o = (o_i - o) + t d_i with t > spread, so d_i is within
-    // asin(spread / |p - o|) of p - o, which is within asin(half / D) of the centre's direction.
-    const double alpha = std::asin(std::min(1.0, fan.spread / (D - half))) + std::asin(std::min(1.0, half / D));
-    // In the plane: two unit vectors at angle alpha whose projections are at least m long project
-    // to directions at most 2 asin(sin(alpha / 2) / m) apart.
-    const double tilt = std::max(fan.tilt, off_plane / D);
-    const double s = std::sin(0.5 * alpha) / std::sqrt(std::max(0.0, 1.0 - tilt * tilt));
-    if (!(s < 0.5)) {
-      all();
-      continue;
-    }
-    const double theta = 2.0 * std::asin(s) * (1.0 + 1e-9) + 1e-12;
-    const double psi = pseudo_angle(dot3(w, fan.u), dot3(w, fan.v));
-    const auto range = [&](double lo, double hi) {
-      auto it = std::lower_bound(fan.order.begin(), fan.order.end(), std::make_pair(lo, std::uint32_t{0}));
-      for (; it != fan.order.end() && it->first <= hi; ++it) f(j, it->second);
-    };
-    const double lo = psi - theta, hi = psi + theta;
-    range(std::max(lo, 0.0), std::min(hi, 4.0));
-    if (lo < 0.0) range(lo + 4.0, 4.0);
-    if (hi > 4.0) range(0.0, hi - 4.0);
   }
 }
 }  // namespace
@@ -397,20 +492,33 @@ ConsistencyEvidence::PassRays ConsistencyEvidence::collect(const Pass& pass) con
   PassRays out;
   out.bit = 1ull << (pass.index % 64);
   const double res = p_.resolution;
-  VoxelBounds bounds;  // of the hits, for the set's dense block directory
+  // The hits' bounds, for the set's dense block directory: from the coordinates' extremes (the
+  // voxel coordinates increase with them, except where they wrap; the directory then exceeds its
+  // limit and the set hashes, as it would have with per-voxel bounds).
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
   std::size_t n = 0;
   bool anchored = false;
   for (std::size_t i = 0; i < pass.size(); ++i) {
     if (!pass.is_kept(i) || !std::isfinite(pass.x[i])) continue;
     ++n;
     if (!std::isfinite(pass.ox[i])) continue;
-    bounds.add(voxel_coord(pass.x[i], res), voxel_coord(pass.y[i], res), voxel_coord(pass.z[i], res));
+    lo[0] = std::min(lo[0], pass.x[i]);
+    lo[1] = std::min(lo[1], pass.y[i]);
+    lo[2] = std::min(lo[2], pass.z[i]);
+    hi[0] = std::max(hi[0], pass.x[i]);
+    hi[1] = std::max(hi[1], pass.y[i]);
+    hi[2] = std::max(hi[2], pass.z[i]);
     if (!anchored) {
       out.anchor[0] = pass.ox[i];
       out.anchor[1] = pass.oy[i];
       out.anchor[2] = pass.oz[i];
       anchored = true;
     }
+  }
+  VoxelBounds bounds;
+  if (anchored) {
+    bounds.add(voxel_coord(lo[0], res), voxel_coord(lo[1], res), voxel_coord(lo[2], res));
+    bounds.add(voxel_coord(hi[0], res), voxel_coord(hi[1], res), voxel_coord(hi[2], res));
   }
   out.hit = VoxelSet(bounds, 0x27d4eb2fu);
   out.rays.reserve(n);
@@ -445,9 +553,18 @@ ConsistencyEvidence::PassRays ConsistencyEvidence::collect(const Pass& pass) con
 void ConsistencyEvidence::merge(PassRays&& v) {
   if (finalized_) throw std::logic_error("ConsistencyEvidence::merge after finalize");
   const BlockGrid<BitBlock>& g = v.hit.blocks();
+  const auto pass = static_cast<std::uint8_t>(__builtin_ctzll(v.bit));
   for (std::size_t b = 0; b < g.size(); ++b) {
     HitBlock& dst = hits_.block(g.key(b));
-    for_each_bit(g[b].w, [&](unsigned c) { dst.hit[c] |= v.bit; });
+    for (unsigned w = 0; w < 8; ++w) {
+      const std::uint64_t bits = g[b].w[w], fresh = bits & ~dst.any[w];
+      for (std::uint64_t o = bits & dst.any[w]; o != 0; o &= o - 1) {  // seen before: by another pass?
+        const unsigned c = 64 * w + static_cast<unsigned>(__builtin_ctzll(o));
+        if (dst.owner[c] != pass) dst.several[w] |= 1ull << (c & 63);
+      }
+      for (std::uint64_t f = fresh; f != 0; f &= f - 1) dst.owner[64 * w + static_cast<unsigned>(__builtin_ctzll(f))] = pass;
+      dst.any[w] |= fresh;
+    }
   }
   v.hit = VoxelSet{};
   stats_.returns += v.rays.size();
@@ -457,6 +574,7 @@ void ConsistencyEvidence::merge(PassRays&& v) {
 void ConsistencyEvidence::add_pass(const Pass& pass) { merge(collect(pass)); }
 
 bool ConsistencyEvidence::other_hit_near(std::uint64_t voxel, std::uint64_t bit) const {
+  const auto pass = static_cast<unsigned>(__builtin_ctzll(bit));
   std::uint32_t c[3];
   unpack(voxel, c);
   std::uint64_t last = ~0ull;
@@ -470,7 +588,7 @@ bool ConsistencyEvidence::other_hit_near(std::uint64_t voxel, std::uint64_t bit)
       b = hits_.find(p.block);
       last = p.block;
     }
-    return b && (b->hit[p.cell] & ~bit) != 0;
+    return b && b->other(p.cell, pass);
   };
   // The voxel and its six faces first (most returns find a surface there), then the whole cube
   // in raster order, which crosses block boundaries (one lookup each) least often.
@@ -560,18 +678,9 @@ void ConsistencyEvidence::find_lonely(unsigned threads) {
 
 void ConsistencyEvidence::walk_rays(unsigned threads) {
   const double res = p_.resolution;
-  // The lonely voxels' centres for the fans' slab test, relative to the first pass's anchor.
-  Centres centres;
-  if (!passes_.empty())
-    for (int a = 0; a < 3; ++a) centres.ref[a] = passes_.front().anchor[a];
-  for (const Lonely& l : lonely_) {
-    double c[3];
-    for (int a = 0; a < 3; ++a) c[a] = (static_cast<double>(l.v[a]) + 0.5) * res - centres.ref[a];
-    centres.x.push_back(static_cast<float>(c[0]));
-    centres.y.push_back(static_cast<float>(c[1]));
-    centres.z.push_back(static_cast<float>(c[2]));
-    centres.reach = std::max(centres.reach, std::sqrt(dot3(c, c)));
-  }
+  // The lonely voxels' centres for the fans' slab tests, relative to the first pass's anchor.
+  const double zero[3] = {0.0, 0.0, 0.0};
+  const Centres centres(lonely_, res, passes_.empty() ? zero : passes_.front().anchor);
   // Lines whose rays make no fan walk them over a coarse grid of the lonely voxels' cells, built
   // the first time a line needs it. Cells of 4 voxels: on the benchmark's eight passes and on
   // Kurt3D, 2 and 8 were slower (fewer exact tests but more cell steps, or the reverse).
@@ -579,6 +688,8 @@ void ConsistencyEvidence::walk_rays(unsigned threads) {
   std::optional<LonelyCells> cells;
   // A fan whose rays stray further than this from its plane would pass most voxels' slab test.
   const double max_dev = std::max(0.5, 4.0 * res);
+  // A voxel's half diagonal, rounded up for the prefilter of the exact test.
+  const double near = 0.5 * std::sqrt(3.0) * res * (1.0 + 1e-9) + 1e-9, near2 = near * near;
   struct Crossed {
     std::vector<std::uint32_t> lonely;  // positions in lonely_
     std::uint64_t walked = 0, fanned = 0;
@@ -589,27 +700,43 @@ void ConsistencyEvidence::walk_rays(unsigned threads) {
       [&](std::size_t w) {
         Crossed out;
         const PassRays& pr = passes_[work[w].pass];
-        std::vector<Segment> segs;
+        std::vector<RayExtent> rays;
         std::vector<float> dist;
         Fan fan;
+        Segment s;
         for (std::size_t k = work[w].begin; k < work[w].end; ++k) {
-          segs.clear();
-          Segment s;
+          rays.clear();
+          RayExtent x;
           for (std::uint32_t i = pr.lines[k]; i < pr.lines[k + 1]; ++i)
-            if (segment_of(pr.rays[i], pr.anchor, p_, s)) segs.push_back(s);
-          out.walked += segs.size();
-          if (make_fan(segs, max_dev, fan)) {
-            out.fanned += segs.size();
+            if (extent_of(pr.rays[i], pr.anchor, p_, x)) {
+              x.i = i;
+              rays.push_back(x);
+            }
+          out.walked += rays.size();
+          if (make_fan(rays, max_dev, fan)) {
+            out.fanned += rays.size();
             for_each_in_fan(fan, centres, lonely_, res, dist, [&](std::size_t j, std::uint32_t i) {
-              if (crosses(segs[i], lonely_[j].v, res)) out.lonely.push_back(static_cast<std::uint32_t>(j));
+              // Most candidates pass wide of the voxel: a ray that enters it passes within
+              // `half` of its centre (no division: |w x dl| against half |dl|).
+              const RayExtent& ray = rays[i];
+              double to[3];
+              for (int a = 0; a < 3; ++a) to[a] = (static_cast<double>(lonely_[j].v[a]) + 0.5) * res - ray.o[a];
+              const double c[3] = {to[1] * ray.dl[2] - to[2] * ray.dl[1], to[2] * ray.dl[0] - to[0] * ray.dl[2],
+                                   to[0] * ray.dl[1] - to[1] * ray.dl[0]};
+              if (dot3(c, c) > near2 * (ray.len * ray.len)) return;
+              segment_of(ray, p_, s);
+              if (crosses(s, lonely_[j].v, res)) out.lonely.push_back(static_cast<std::uint32_t>(j));
             });
             continue;
           }
           std::call_once(cells_built, [&] { cells.emplace(lonely_, 4, res); });
-          for (const Segment& g : segs)
-            cells->for_each_near(g, res, [&](const LonelyCells::Box& b) {
-              if (crosses(g, b.v, res)) out.lonely.push_back(b.index);
+          for (const RayExtent& g : rays) {
+            segment_of(g, p_, s);
+            set_inverse(s);
+            cells->for_each_near(s, res, [&](const LonelyCells::Box& b) {
+              if (crosses(s, b.v, res)) out.lonely.push_back(b.index);
             });
+          }
         }
         return out;
       },

@@ -83,8 +83,17 @@ class ConsistencyEvidence {
   const Stats& stats() const { return stats_; }
 
  private:
+  /// Which passes returned from each voxel of a block, as much as other_hit_near needs: whether
+  /// any did, which one if only one did (its index mod 64), whether several did. 640 bytes a block
+  /// (a 64-bit set per voxel took 4 KB: 6x the memory to clear and to miss in the cache).
   struct HitBlock {
-    std::uint64_t hit[512] = {};  ///< bit (pass mod 64)
+    std::uint64_t any[8] = {}, several[8] = {};
+    std::uint8_t owner[512] = {};
+    /// Whether a pass other than `pass` (index mod 64) returned from the cell.
+    bool other(unsigned cell, unsigned pass) const {
+      const std::uint64_t m = 1ull << (cell & 63);
+      return (several[cell >> 6] & m) != 0 || ((any[cell >> 6] & m) != 0 && owner[cell] != pass);
+    }
   };
   struct Lonely {
     std::uint64_t key;            ///< packed voxel coordinates (21 bits each: they wrap)
