@@ -351,6 +351,27 @@ TEST(CheckConsistency, TheThreadCountDoesNotChangeTheLabels) {
   EXPECT_EQ(got[0], got[1]);
 }
 
+TEST(CheckConsistency, LabelsAPassThatChangedSinceItWasCollected) {
+  // label() goes straight to the lonely returns finalize() found, by their position among the
+  // pass's kept returns; given a pass that no longer matches (a return rejected since), it must
+  // judge each return by its voxel, as for any pass.
+  std::vector<Pass> passes = fan_scene(5, 3, 0.01, 0.004);
+  ConsistencyEvidence ev{ConsistencyParams{}};
+  for (const Pass& p : passes) ev.add_pass(p);
+  ev.finalize();
+  Pass changed = passes[1];
+  std::vector<Label> want = passes[1].label;
+  const std::size_t n = ev.label(passes[1]);
+  ASSERT_GT(n, 5u);
+  std::size_t first = 0;  // the first contradicted return: everything after it shifts by one
+  while (passes[1].label[first] != Label::kInconsistent) ++first;
+  changed.label[first / 2] = Label::kMixedPixel;
+  want = passes[1].label;
+  want[first / 2] = Label::kMixedPixel;
+  EXPECT_EQ(ev.label(changed), first / 2 == first ? n - 1 : n);
+  EXPECT_EQ(changed.label, want);
+}
+
 TEST(CheckConsistency, EvidenceIsCompleteBeforeLabelling) {
   std::vector<Pass> passes = random_scene(3, 2);
   ConsistencyEvidence ev{ConsistencyParams{}};

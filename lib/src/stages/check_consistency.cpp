@@ -490,6 +490,7 @@ void for_each_in_fan(const Fan& fan, const Centres& c, const std::vector<Lonely>
 
 ConsistencyEvidence::PassRays ConsistencyEvidence::collect(const Pass& pass) const {
   PassRays out;
+  out.index = pass.index;
   out.bit = 1ull << (pass.index % 64);
   const double res = p_.resolution;
   // The hits' bounds, for the set's dense block directory: from the coordinates' extremes (the
@@ -634,8 +635,15 @@ std::vector<ConsistencyEvidence::Chunk> ConsistencyEvidence::chunks() const {
 
 void ConsistencyEvidence::find_lonely(unsigned threads) {
   struct Found {
-    std::vector<Lonely> voxels;  // one per lonely return
+    std::vector<Lonely> voxels;       // one per lonely return
+    std::vector<std::uint32_t> rays;  // its position among the pass's rays
   };
+  for (const PassRays& pr : passes_) {
+    PassLonely& pl = pass_lonely_[pr.index];
+    if (pl.seen) pl.unique = false;
+    pl.seen = true;
+    pl.rays = static_cast<std::uint32_t>(pr.rays.size());
+  }
   const std::vector<Chunk> work = chunks();
   detail::ordered_parallel<Found>(
       work.size(), threads, 2 * threads,
@@ -656,21 +664,24 @@ void ConsistencyEvidence::find_lonely(unsigned threads) {
             Lonely l{r.voxel, {}, 0, 0};
             for (int a = 0; a < 3; ++a) l.v[a] = unwrap(c[a], (pr.anchor[a] + static_cast<double>(r.e[a])) / p_.resolution);
             f.voxels.push_back(l);
+            f.rays.push_back(static_cast<std::uint32_t>(i));
           }
         }
         return f;
       },
       [&](std::size_t w, Found&& f) {
-        const std::uint64_t bit = passes_[work[w].pass].bit;
+        const PassRays& pr = passes_[work[w].pass];
         stats_.lonely_returns += f.voxels.size();
-        for (const Lonely& l : f.voxels) {
-          const std::uint64_t key = l.key;
-          std::uint32_t& slot = lonely_index_[key];  // position + 1; 0: new
+        PassLonely& pl = pass_lonely_[pr.index];
+        for (std::size_t k = 0; k < f.voxels.size(); ++k) {
+          const Lonely& l = f.voxels[k];
+          std::uint32_t& slot = lonely_index_[l.key];  // position + 1; 0: new
           if (slot == 0) {
             lonely_.push_back(l);
             slot = static_cast<std::uint32_t>(lonely_.size());
           }
-          lonely_[slot - 1].passes |= bit;
+          lonely_[slot - 1].passes |= pr.bit;
+          pl.lonely.emplace_back(f.rays[k], slot - 1);
         }
       });
   stats_.lonely_voxels = lonely_.size();
@@ -761,10 +772,38 @@ void ConsistencyEvidence::finalize(unsigned threads) {
 
 std::size_t ConsistencyEvidence::label(Pass& pass) const {
   if (!finalized_) throw std::logic_error("ConsistencyEvidence::label before finalize");
+  if (lonely_.empty()) return 0;
+  // The lonely returns finalize() found for this pass, if it is the pass that was collected: the
+  // same count of kept returns with a point, and each listed one in the voxel recorded for it.
+  // Otherwise (another pass, or two passes with one index) every return is looked up.
+  const auto found = pass_lonely_.find(pass.index);
+  if (found == pass_lonely_.end() || !found->second.unique) return label_by_lookup(pass);
+  const PassLonely* pl = &found->second;
+  const std::uint64_t bit = 1ull << (pass.index % 64);
+  const double res = p_.resolution;
+  std::vector<std::size_t> contradicted;
+  std::uint32_t ray = 0;
+  auto next = pl->lonely.begin();
+  for (std::size_t i = 0; i < pass.size(); ++i) {
+    if (!pass.is_kept(i) || !std::isfinite(pass.x[i])) continue;
+    if (next != pl->lonely.end() && next->first == ray) {
+      const Lonely& l = lonely_[next->second];
+      if (l.key != pack(voxel_coord(pass.x[i], res), voxel_coord(pass.y[i], res), voxel_coord(pass.z[i], res)))
+        return label_by_lookup(pass);
+      if (__builtin_popcountll(l.free & ~bit) >= p_.min_passes) contradicted.push_back(i);
+      ++next;
+    }
+    ++ray;
+  }
+  if (ray != pl->rays || next != pl->lonely.end()) return label_by_lookup(pass);
+  for (const std::size_t i : contradicted) pass.label[i] = Label::kInconsistent;
+  return contradicted.size();
+}
+
+std::size_t ConsistencyEvidence::label_by_lookup(Pass& pass) const {
   const std::uint64_t bit = 1ull << (pass.index % 64);
   const double res = p_.resolution;
   std::size_t n = 0;
-  if (lonely_.empty()) return 0;
   for (std::size_t i = 0; i < pass.size(); ++i) {
     if (!pass.is_kept(i) || !std::isfinite(pass.x[i])) continue;
     const std::uint32_t* slot = lonely_index_.find(pack(voxel_coord(pass.x[i], res), voxel_coord(pass.y[i], res), voxel_coord(pass.z[i], res)));

@@ -17,6 +17,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <vector>
 
 #include "pcdp/flat_map.hpp"
@@ -51,6 +52,7 @@ class ConsistencyEvidence {
   };
   /// What one pass contributes: the voxels it returned from and its rays.
   struct PassRays {
+    std::size_t index = 0;  ///< the pass's index
     std::uint64_t bit = 0;  ///< 1 << (pass index mod 64)
     VoxelSet hit{0x27d4eb2fu};
     double anchor[3] = {0.0, 0.0, 0.0};
@@ -110,7 +112,18 @@ class ConsistencyEvidence {
   void find_lonely(unsigned threads);
   void walk_rays(unsigned threads);
 
+  /// A pass's lonely returns as finalize() found them, so that label() looks up only those:
+  /// (position among the pass's rays, position in lonely_), in ray order.
+  struct PassLonely {
+    std::uint32_t rays = 0;  ///< the pass's ray count, to check label() is given the same pass
+    bool unique = true;      ///< false when two passes had this index (label() then looks up every return)
+    bool seen = false;
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> lonely;
+  };
+  std::size_t label_by_lookup(Pass& pass) const;
+
   ConsistencyParams p_;
+  std::map<std::size_t, PassLonely> pass_lonely_;  ///< by pass index
   BlockGrid<HitBlock> hits_{0x61c88647u};
   std::vector<PassRays> passes_;  ///< until finalize()
   bool finalized_ = false;
