@@ -9,10 +9,12 @@
 //     rays, kept compactly (32 bytes a ray) until every pass has been seen;
 //  2. finalize, once: a return with another pass's hit within hit_radius voxels is consistent
 //     whatever crossed it, so free-space evidence is needed only at the voxels of the other,
-//     "lonely" returns (a few per cent of them). Every ray is then walked over a coarse grid of
-//     those voxels' cells, and tested exactly (ray against box) only against the lonely voxels of
-//     the cells it crosses, instead of being walked voxel by voxel;
-//  3. label: one lookup per return.
+//     "lonely" returns (a few per cent of them). The rays of each scan line are then taken
+//     together as a fan (nearly one origin, nearly one plane; bounds measured on the rays):
+//     only the lonely voxels near the fan's plane, and for each only the rays whose bearing
+//     points at it, get the exact test (ray against box). Lines whose rays make no fan are
+//     walked over a coarse grid of the lonely voxels' cells;
+//  3. label: straight to the lonely returns step 2 found.
 // Walking every ray voxel by voxel cost about 3 ns a step, 300 ns a ray; see docs/performance.md.
 #pragma once
 
@@ -70,7 +72,10 @@ class ConsistencyEvidence {
   /// After the last pass: finds the lonely returns and the passes whose rays crossed their voxels,
   /// on up to `threads` threads (the result does not depend on it), then frees the rays.
   void finalize(unsigned threads = 1);
-  /// Labels the contradicted kept returns of `pass`; returns how many. Needs finalize().
+  /// Labels the contradicted kept returns of `pass`; returns how many. Needs finalize(). Meant
+  /// for the passes as they were collected: it goes straight to the lonely returns finalize()
+  /// found. A pass with another count of kept returns, or whose listed returns lie in other
+  /// voxels, is judged return by return instead.
   std::size_t label(Pass& pass) const;
 
   /// What finalize() found, for the stage's report.
