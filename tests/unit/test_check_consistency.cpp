@@ -13,20 +13,23 @@
 using namespace pcdp;
 
 namespace {
+/// Appends a kept, registered return at q seen from `origin` (range_cal is left to the caller).
+void push_return(Pass& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& q) {
+  p.x.push_back(q.x());
+  p.y.push_back(q.y());
+  p.z.push_back(q.z());
+  p.ox.push_back(origin.x());
+  p.oy.push_back(origin.y());
+  p.oz.push_back(origin.z());
+  p.label.push_back(Label::kKept);
+  p.range.push_back(static_cast<float>((q - origin).norm()));
+}
+
 /// A registered pass of single rays from `origin` to the given points.
 Pass rays(std::size_t index, const Eigen::Vector3d& origin, const std::vector<Eigen::Vector3d>& pts) {
   Pass p;
   p.index = index;
-  for (const auto& q : pts) {
-    p.x.push_back(q.x());
-    p.y.push_back(q.y());
-    p.z.push_back(q.z());
-    p.ox.push_back(origin.x());
-    p.oy.push_back(origin.y());
-    p.oz.push_back(origin.z());
-    p.label.push_back(Label::kKept);
-    p.range.push_back(static_cast<float>((q - origin).norm()));
-  }
+  for (const auto& q : pts) push_return(p, origin, q);
   p.range_cal = p.range;
   return p;
 }
@@ -266,15 +269,7 @@ std::vector<Pass> fan_scene(std::uint32_t seed, std::size_t npasses, double spre
         const double r = u(rng);
         if (r < 0.04) t *= 0.2 + 0.7 * u(rng);        // a veil or false range
         else if (r < 0.05) t = 0.55 + 0.5 * u(rng);   // a stray just beyond the margin
-        const Eigen::Vector3d q = o + t * d + offset, oo = o + offset;
-        p.x.push_back(q.x());
-        p.y.push_back(q.y());
-        p.z.push_back(q.z());
-        p.ox.push_back(oo.x());
-        p.oy.push_back(oo.y());
-        p.oz.push_back(oo.z());
-        p.label.push_back(Label::kKept);
-        p.range.push_back(static_cast<float>(t));
+        push_return(p, o + offset, o + t * d + offset);
       }
     }
     p.line_begin.push_back(p.size());
