@@ -58,7 +58,6 @@ std::int64_t unwrap(std::uint32_t wrapped, double approx) {
 struct Segment {
   double o[3], d[3], inv[3], tend;  // inv: 1 / d, for the cell walks (set_inverse; the exact test divides)
 };
-// False when the ray gives no free-space evidence: no origin, too short or too long.
 // A ray's origin, its vector to the return (e - o) and length: false when the ray gives no
 // free-space evidence (no origin, too short or too long).
 struct RayExtent {
