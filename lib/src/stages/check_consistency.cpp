@@ -62,8 +62,9 @@ struct Segment {
 // free-space evidence (no origin, too short or too long).
 struct RayExtent {
   double o[3], dl[3], len;
-  std::uint32_t i;  // position in the pass's rays
 };
+// The coordinate (m) of the centre of voxel v along one axis.
+inline double centre_of(std::int64_t v, double res) { return (static_cast<double>(v) + 0.5) * res; }
 bool extent_of(const ConsistencyEvidence::Ray& r, const double anchor[3], const ConsistencyParams& p, RayExtent& x) {
   double len2 = 0.0;
   for (int a = 0; a < 3; ++a) {
@@ -285,7 +286,7 @@ inline double pseudo_angle(double x, double y) {
 struct Fan {
   double o[3], n[3], u[3], v[3];
   double dev = 0, spread = 0, tilt = 0;
-  std::vector<std::pair<double, std::uint32_t>> order;  // (pseudo-angle, position in the line's segments)
+  std::vector<std::pair<double, std::uint32_t>> order;  // (pseudo-angle, position in the line's rays)
 };
 
 double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
@@ -420,7 +421,7 @@ struct Centres {
       }
       id.push_back(j);
       double c[3];
-      for (int a = 0; a < 3; ++a) c[a] = (static_cast<double>(v[a]) + 0.5) * res - ref[a];
+      for (int a = 0; a < 3; ++a) c[a] = centre_of(v[a], res) - ref[a];
       x.push_back(static_cast<float>(c[0]));
       y.push_back(static_cast<float>(c[1]));
       z.push_back(static_cast<float>(c[2]));
@@ -435,7 +436,7 @@ struct Centres {
 constexpr double kAsinSlope = 1.0472;
 
 // f(j, i) for the lonely voxels j (positions in the lonely list) and rays i (positions in the
-// fan's segments) where the ray may cross the voxel: a superset of the crossings.
+// line's rays) where the ray may cross the voxel: a superset of the crossings.
 template <class Lonely, class F>
 void for_each_in_fan(const Fan& fan, const Centres& c, const std::vector<Lonely>& lonely, double res,
                      std::vector<float>& dist, F&& f) {
@@ -456,7 +457,7 @@ void for_each_in_fan(const Fan& fan, const Centres& c, const std::vector<Lonely>
       if (std::fabs(nx * c.x[q] + ny * c.y[q] + nz * c.z[q] - off) > tol) continue;
       const std::size_t j = c.id[q];
       double w[3];
-      for (int a = 0; a < 3; ++a) w[a] = (static_cast<double>(lonely[j].v[a]) + 0.5) * res - fan.o[a];
+      for (int a = 0; a < 3; ++a) w[a] = centre_of(lonely[j].v[a], res) - fan.o[a];
       const double D = std::sqrt(dot3(w, w)), off_plane = std::fabs(dot3(w, fan.n));
       // A ray i that meets the voxel at p: p - o = (o_i - o) + t d_i with t > spread (so the voxel
       // must be further than half + 2 spread), so d_i is within asin(spread / |p - o|) of p - o,
@@ -718,10 +719,7 @@ void ConsistencyEvidence::walk_rays(unsigned threads) {
           rays.clear();
           RayExtent x;
           for (std::uint32_t i = pr.lines[k]; i < pr.lines[k + 1]; ++i)
-            if (extent_of(pr.rays[i], pr.anchor, p_, x)) {
-              x.i = i;
-              rays.push_back(x);
-            }
+            if (extent_of(pr.rays[i], pr.anchor, p_, x)) rays.push_back(x);
           out.walked += rays.size();
           if (make_fan(rays, max_dev, fan)) {
             out.fanned += rays.size();
@@ -730,7 +728,7 @@ void ConsistencyEvidence::walk_rays(unsigned threads) {
               // `half` of its centre (no division: |w x dl| against half |dl|).
               const RayExtent& ray = rays[i];
               double to[3];
-              for (int a = 0; a < 3; ++a) to[a] = (static_cast<double>(lonely_[j].v[a]) + 0.5) * res - ray.o[a];
+              for (int a = 0; a < 3; ++a) to[a] = centre_of(lonely_[j].v[a], res) - ray.o[a];
               const double c[3] = {to[1] * ray.dl[2] - to[2] * ray.dl[1], to[2] * ray.dl[0] - to[0] * ray.dl[2],
                                    to[0] * ray.dl[1] - to[1] * ray.dl[0]};
               if (dot3(c, c) > near2 * (ray.len * ray.len)) return;
