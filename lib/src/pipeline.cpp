@@ -233,25 +233,35 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
       });
   // finish() touches only its own stage (and the sink, guarded here), so with threads the stages
   // write their products at the same time, and the parts of a stage that writes several (see
-  // Stage::finish_parts); errors are reported in stage order.
+  // Stage::finish_parts); errors are reported in stage order. Closing returns.pcd and cloud.pcd
+  // (each copies its body behind the header) are two more parts, last: on 2 threads they run
+  // beside elevation.tif, the longest part, instead of after it.
   LockedSink sink(out);
-  std::vector<std::pair<std::size_t, std::size_t>> parts;  // (stage, part)
+  std::vector<std::pair<std::size_t, std::size_t>> parts;  // (stage, part); stage == size: a writer
   for (std::size_t s = 0; s < stages_.size(); ++s)
     for (std::size_t p = 0; p < stages_[s]->finish_parts(); ++p) parts.emplace_back(s, p);
+  parts.emplace_back(stages_.size(), 0);
+  parts.emplace_back(stages_.size(), 1);
   detail::ordered_parallel<StageReport>(
       parts.size(), sum.threads, parts.size(),
       [&](std::size_t t) {
         StageReport rep;
+        const auto [s, p] = parts[t];
+        if (s == stages_.size()) {
+          if (p == 0) returns.close();
+          else cloud.close();
+          return rep;
+        }
         const auto t0 = std::chrono::steady_clock::now();
-        stages_[parts[t].first]->finish_part(parts[t].second, sink, rep);
+        stages_[s]->finish_part(p, sink, rep);
         const double dt = seconds_since(t0);
         rep.seconds += dt;
         if (dt > 1e-4) rep.metrics["finish_seconds"] += dt;  // products written at the end
         return rep;
       },
-      [&](std::size_t t, StageReport&& rep) { merge_report(sum.stages[parts[t].first], rep); });
-  returns.close();
-  cloud.close();
+      [&](std::size_t t, StageReport&& rep) {
+        if (parts[t].first < stages_.size()) merge_report(sum.stages[parts[t].first], rep);
+      });
   if (returns.points() != sum.input_returns)
     throw std::logic_error("returns.pcd holds " + std::to_string(returns.points()) + " returns, input had " +
                            std::to_string(sum.input_returns));

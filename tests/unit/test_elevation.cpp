@@ -144,6 +144,32 @@ TEST(Elevation, GeoTiffRoundTripAndGdalinfo) {
   EXPECT_NE(info.find("Type=Float32"), std::string::npos);
 }
 
+TEST(Elevation, GeoTiffStripsHoldAtLeast64KiBOfABand) {
+  // Strips of >= 64 KiB (16,384 float cells): a narrow tall grid gets ceil(65536 / 40) = 1,639
+  // rows a strip, a grid wider than 16,384 cells one row, a small grid a single strip. Each
+  // round-trips whatever its strips.
+  const auto block_of = [](const ElevationGrid& g, const std::string& dir) {
+    io::write_elevation_geotiff(g, dir + "/s.tif");
+    expect_same(g, io::read_elevation_geotiff(dir + "/s.tif"), 1e-6);
+    const std::string cmd = "gdalinfo " + dir + "/s.tif > " + dir + "/info.txt 2>&1";
+    EXPECT_EQ(std::system(cmd.c_str()), 0);
+    const std::string info = test::read_text(dir + "/info.txt");
+    const auto at = info.find("Band 1 Block=");
+    return at == std::string::npos ? info : info.substr(at + 13, info.find(' ', at + 13) - at - 13);
+  };
+  const std::string dir = test::fresh_dir();
+  ElevationGrid tall(0.5, 0.05), wide(0.5, 0.05), small(0.5, 0.05);
+  tall.add(0.1, 0.1, 1.0, 1e-4, 0);
+  tall.add(4.9, 2499.9, 2.0, 1e-4, 0);  // 10 x 5000 cells
+  wide.add(0.1, 0.1, 1.0, 1e-4, 0);
+  wide.add(10000.1, 0.6, 2.0, 1e-4, 0);  // 20001 x 2 cells
+  small.add(0.1, 0.1, 1.0, 1e-4, 0);
+  small.add(9.9, 4.9, 2.0, 1e-4, 0);  // 20 x 10 cells
+  EXPECT_EQ(block_of(tall, dir), "10x1639");
+  EXPECT_EQ(block_of(wide, dir), "20001x1");
+  EXPECT_EQ(block_of(small, dir), "20x10");
+}
+
 TEST(Elevation, SamplesAddedInOneBatchEqualPointsAddedOneByOne) {
   // Cells on both sides of zero and far out (negative indices, the 31-bit key's offset) and runs
   // of points in one cell (the batch's last-cell shortcut), in two passes.

@@ -21,6 +21,7 @@ namespace {
 constexpr int kFixed = 6;  // elevation variance count min max passes
 constexpr int kPerBand = 4;  // index weight mean count, for each kept height band
 constexpr int kBands = kFixed + kPerBand * ElevationCell::kBands;
+constexpr int kStripBytes = 64 * 1024;  // at least this much of a band per TIFF strip
 std::string band_name(int b) {
   static const char* const fixed[kFixed] = {"elevation", "variance", "count", "min", "max", "passes"};
   if (b < kFixed) return fixed[b];
@@ -58,6 +59,13 @@ void write_elevation_geotiff(const ElevationGrid& grid, const std::string& path,
   opts = CSLSetNameValue(opts, "COMPRESS", "DEFLATE");
   opts = CSLSetNameValue(opts, "ZLEVEL", std::to_string(deflate_level).c_str());
   opts = CSLSetNameValue(opts, "INTERLEAVE", "BAND");
+  // Strips of at least 64 KiB, not GDAL's default of about 8 KiB: every strip costs a compressor
+  // set-up and a flush, and on the 8-pass bench grid (267 x 400 cells, 22 bands) the default's
+  // 1,276 strips took 22 ms to write against 16 ms for 154 (the file 7 % smaller). Any TIFF
+  // reader reads either; a strip is still a few rows of a wide grid, so memory stays small.
+  const int row_bytes = nx * static_cast<int>(sizeof(float));
+  const int rows_per_strip = std::min(ny, std::max(1, (kStripBytes + row_bytes - 1) / row_bytes));
+  opts = CSLSetNameValue(opts, "BLOCKYSIZE", std::to_string(rows_per_strip).c_str());
   GDALDataset* ds = drv->Create(tmp.c_str(), nx, ny, kBands, GDT_Float32, opts);
   CSLDestroy(opts);
   if (!ds) throw std::runtime_error(path + ": GDAL cannot create " + tmp);
