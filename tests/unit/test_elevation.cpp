@@ -1,7 +1,10 @@
 #include <gtest/gtest.h>
+#include <png.h>
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <random>
 #include <stdexcept>
@@ -16,6 +19,7 @@
 #include "test_support.hpp"
 
 using namespace pcdp;
+namespace fs = std::filesystem;
 
 namespace {
 void expect_same(const ElevationGrid& a, const ElevationGrid& b, double tol) {
@@ -168,6 +172,49 @@ TEST(Elevation, GeoTiffStripsHoldAtLeast64KiBOfABand) {
   EXPECT_EQ(block_of(tall, dir), "10x1639");
   EXPECT_EQ(block_of(wide, dir), "20001x1");
   EXPECT_EQ(block_of(small, dir), "20x10");
+}
+
+TEST(Elevation, PngShowsTheGridNorthUpAndFailsWithoutLeavingAFile) {
+  // A plane rising eastwards, 40 x 20 cells of 0.5 m, with one empty cell. The picture is the map
+  // at 8 pixels a cell (900 / 40 capped at 8) inside a 10-pixel margin, plus the colour bar's 130
+  // pixels to the right and the scale bar's 60 below.
+  ElevationGrid g(0.5, 0.05);
+  for (int ix = 0; ix < 40; ++ix)
+    for (int iy = 0; iy < 20; ++iy)
+      if (!(ix == 10 && iy == 15))
+        for (int k = 0; k < 2; ++k) g.add(0.5 * ix + 0.25, 0.5 * iy + 0.25, 0.05 * ix, 1e-4, 0);  // min_support 2
+  const std::string dir = test::fresh_dir();
+  io::write_elevation_png(g, dir + "/e.png");
+  png_image img;
+  std::memset(&img, 0, sizeof img);
+  img.version = PNG_IMAGE_VERSION;
+  ASSERT_TRUE(png_image_begin_read_from_file(&img, (dir + "/e.png").c_str())) << img.message;
+  img.format = PNG_FORMAT_RGB;
+  std::vector<std::uint8_t> px(PNG_IMAGE_SIZE(img));
+  ASSERT_TRUE(png_image_finish_read(&img, nullptr, px.data(), 0, nullptr)) << img.message;
+  ASSERT_EQ(img.width, 40u * 8 + 130);
+  ASSERT_EQ(img.height, 20u * 8 + 60);
+  const auto at = [&](int col, int row, int ch) {  // centre pixel of a cell, north row first
+    return px[3 * (static_cast<std::size_t>(row * 8 + 14) * img.width + static_cast<std::size_t>(col * 8 + 14)) + static_cast<std::size_t>(ch)];
+  };
+  // The empty cell (ix 10, iy 15: row 19 - 15 = 4 from the top) is the no-data grey.
+  for (int ch = 0; ch < 3; ++ch) EXPECT_EQ(at(10, 4, ch), 225);
+  // Away from the edges (where the slope is one-sided) the hillshade is the same everywhere, so
+  // green rises with the height along a row (of the ramp's channels, green alone is monotonic:
+  // 1, 82, 145, 201, 231), from purple to yellow.
+  for (int col = 2; col < 38; ++col) EXPECT_LE(at(col, 10, 1), at(col + 1, 10, 1)) << col;
+  EXPECT_GT(at(1, 10, 2), at(1, 10, 1));   // west: more blue than green (the ramp's low end)
+  EXPECT_GT(at(38, 10, 1), at(38, 10, 2));  // east: more green than blue (yellow)
+  EXPECT_GT(at(38, 10, 1), at(1, 10, 1) + 100);
+  // A path that cannot be replaced (a folder) fails with its name and leaves no temporary file.
+  fs::create_directories(dir + "/taken.png");
+  try {
+    io::write_elevation_png(g, dir + "/taken.png");
+    ADD_FAILURE() << "expected an error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("taken.png"), std::string::npos) << e.what();
+  }
+  for (const auto& e : fs::directory_iterator(dir)) EXPECT_EQ(e.path().filename().string().find("tmp"), std::string::npos) << e.path();
 }
 
 TEST(Elevation, SamplesAddedInOneBatchEqualPointsAddedOneByOne) {

@@ -3,10 +3,12 @@
 #include <cpl_conv.h>
 #include <cpl_string.h>
 #include <gdal_priv.h>
+#include <png.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 #include <mutex>
 #include <stdexcept>
@@ -218,16 +220,16 @@ const char* glyph(char c) {
   }
 }
 
-struct Canvas {
+struct Canvas {  // 8-bit RGB, interleaved row by row (libpng's PNG_FORMAT_RGB)
   int w, h;
-  std::vector<std::uint8_t> r, g, b;
-  Canvas(int W, int H) : w(W), h(H), r(static_cast<std::size_t>(W * H), 255), g(r), b(r) {}
+  std::vector<std::uint8_t> rgb;
+  Canvas(int W, int H) : w(W), h(H), rgb(static_cast<std::size_t>(W) * static_cast<std::size_t>(H) * 3, 255) {}
   void put(int x, int y, const Rgb& c) {
     if (x < 0 || y < 0 || x >= w || y >= h) return;
-    const std::size_t i = static_cast<std::size_t>(y * w + x);
-    r[i] = static_cast<std::uint8_t>(std::clamp(c.r, 0.0, 255.0));
-    g[i] = static_cast<std::uint8_t>(std::clamp(c.g, 0.0, 255.0));
-    b[i] = static_cast<std::uint8_t>(std::clamp(c.b, 0.0, 255.0));
+    std::uint8_t* p = &rgb[3 * (static_cast<std::size_t>(y) * static_cast<std::size_t>(w) + static_cast<std::size_t>(x))];
+    p[0] = static_cast<std::uint8_t>(std::clamp(c.r, 0.0, 255.0));
+    p[1] = static_cast<std::uint8_t>(std::clamp(c.g, 0.0, 255.0));
+    p[2] = static_cast<std::uint8_t>(std::clamp(c.b, 0.0, 255.0));
   }
   void text(int x, int y, const std::string& s, int scale = 2) {
     for (char ch : s) {
@@ -250,7 +252,6 @@ std::string fmt(double v) {
 }  // namespace
 
 void write_elevation_png(const ElevationGrid& grid, const std::string& path) {
-  gdal_init();
   std::int64_t ix0 = 0, iy0 = 0, ix1 = 0, iy1 = 0;
   if (!grid.bounds(ix0, iy0, ix1, iy1)) ix0 = iy0 = ix1 = iy1 = 0;
   const int nx = static_cast<int>(ix1 - ix0 + 1), ny = static_cast<int>(iy1 - iy0 + 1);
@@ -264,9 +265,14 @@ void write_elevation_png(const ElevationGrid& grid, const std::string& path) {
   });
   double lo = 0, hi = 1;
   if (!vals.empty()) {  // 2nd and 98th percentiles: a few outliers do not wash out the colours
-    std::sort(vals.begin(), vals.end());
-    lo = vals[vals.size() * 2 / 100];
-    hi = vals[std::min(vals.size() - 1, vals.size() * 98 / 100)];
+    // The same order statistics a full sort gives, selected: the lower first, then the upper
+    // among the values above it.
+    const std::size_t ilo = vals.size() * 2 / 100, ihi = std::min(vals.size() - 1, vals.size() * 98 / 100);
+    std::nth_element(vals.begin(), vals.begin() + static_cast<std::ptrdiff_t>(ilo), vals.end());
+    lo = vals[ilo];
+    if (ihi > ilo)
+      std::nth_element(vals.begin() + static_cast<std::ptrdiff_t>(ilo) + 1, vals.begin() + static_cast<std::ptrdiff_t>(ihi), vals.end());
+    hi = vals[ihi];
     if (hi - lo < 1e-3) hi = lo + 1e-3;
   }
   const int scale = std::max(1, std::min(8, 900 / std::max(nx, ny)));
@@ -315,24 +321,24 @@ void write_elevation_png(const ElevationGrid& grid, const std::string& path) {
     for (int y = 0; y < 4; ++y) cv.put(10 + x, maph + 25 + y, {0, 0, 0});
   cv.text(10 + lpx + 8, maph + 22, fmt(len) + "m");
 
-  GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
-  GDALDriver* png = GetGDALDriverManager()->GetDriverByName("PNG");
-  if (!mem || !png) throw std::runtime_error("GDAL lacks the MEM or PNG driver");
-  GDALDataset* ds = mem->Create("", W, H, 3, GDT_Byte, nullptr);
-  std::vector<std::uint8_t>* chans[3] = {&cv.r, &cv.g, &cv.b};
-  for (int k = 0; k < 3; ++k)
-    if (ds->GetRasterBand(k + 1)->RasterIO(GF_Write, 0, 0, W, H, chans[k]->data(), W, H, GDT_Byte, 0, 0) != CE_None)
-      throw std::runtime_error(path + ": GDAL raster write failed");
-  const std::string tmp = path + ".tmp-gdal.png";
-  // zlib level 3, not libpng's 6: the picture is written in half the time for a file about a
-  // fifth larger (measured on the sample: 52.8 against 62.8 kB); it is a preview, not an archive.
-  char** opts = CSLSetNameValue(nullptr, "ZLEVEL", "3");
-  GDALDataset* out = png->CreateCopy(tmp.c_str(), ds, FALSE, opts, nullptr, nullptr);
-  CSLDestroy(opts);
-  GDALClose(ds);
-  if (!out) throw std::runtime_error(path + ": GDAL cannot write the PNG");
-  GDALClose(out);
-  std::remove((tmp + ".aux.xml").c_str());
+  // libpng's simplified writer, which reports errors by return value (no longjmp through our
+  // frames), with PNG_IMAGE_FLAG_FAST: no row filters, zlib level 3. It is a preview, not an
+  // archive: on the 8-pass bench grid (664 x 860 pixels) it encodes in 4.5 ms for 79.4 kB, where
+  // GDAL's PNG driver at zlib level 3 (adaptive filters) took 12.3 ms for 73.8 kB.
+  const std::string tmp = path + ".tmp-png";
+  png_image img;
+  std::memset(&img, 0, sizeof img);
+  img.version = PNG_IMAGE_VERSION;
+  img.width = static_cast<png_uint_32>(W);
+  img.height = static_cast<png_uint_32>(H);
+  img.format = PNG_FORMAT_RGB;
+  img.flags = PNG_IMAGE_FLAG_FAST;
+  if (!png_image_write_to_file(&img, tmp.c_str(), 0, cv.rgb.data(), 0, nullptr)) {
+    const std::string why = img.message;
+    png_image_free(&img);
+    std::remove(tmp.c_str());
+    throw std::runtime_error(path + ": cannot write the PNG (" + why + ")");
+  }
   rename_into_place(tmp, path);
 }
 

@@ -6,7 +6,7 @@
 // elevations agree to float32 precision. Metadata records resolution, band height and
 // min_support. Written to a temporary name, then renamed. DEFLATE-compressed at `deflate_level`
 // (1 .. 12, GDAL's ZLEVEL with libdeflate): 1 writes the sample grid 3x faster than GDAL's default
-// 6 for a file 2.4 % larger (docs/performance.md).
+// 6 for a file 2.4 % larger (docs/performance.md). Strips hold at least 64 KiB of a band.
 #pragma once
 
 #include <string>
@@ -21,7 +21,9 @@ void write_elevation_geotiff(const ElevationGrid& grid, const std::string& path,
 ElevationGrid read_elevation_geotiff(const std::string& path);
 
 /// The picture a person reads: elevation in colour (perceptual ramp) with hillshade, unobserved
-/// cells in light grey, a colour bar with heights and a scale bar. PNG, via GDAL.
+/// cells in light grey, a colour bar with heights and a scale bar. 8-bit RGB PNG through libpng's
+/// simplified writer (no row filters, zlib level 3: a preview). Written to a temporary name, then
+/// renamed; throws std::runtime_error naming the path.
 void write_elevation_png(const ElevationGrid& grid, const std::string& path);
 
 }  // namespace pcdp::io
