@@ -43,6 +43,14 @@ void expect_same(const ElevationGrid& a, const ElevationGrid& b, double tol) {
   EXPECT_EQ(n, b.size());
 }
 
+// What Debian's gdalinfo prints for a file (the test fails if it cannot read it).
+std::string gdalinfo(const std::string& tif) {
+  const std::string txt = tif + ".info.txt";
+  const std::string cmd = "gdalinfo " + tif + " > " + txt + " 2>&1";
+  EXPECT_EQ(std::system(cmd.c_str()), 0) << test::read_text(txt);
+  return test::read_text(txt);
+}
+
 std::vector<Pass> registered_sample_like_passes() {
   sim::SimConfig c = test::small_sim_config();
   c.passes = 4;
@@ -136,9 +144,7 @@ TEST(Elevation, GeoTiffRoundTripAndGdalinfo) {
   io::write_elevation_geotiff(g, dir + "/e.tif");
   expect_same(g, io::read_elevation_geotiff(dir + "/e.tif"), 1e-6);
   // gdalinfo (Debian's gdal-bin) sees the bands, nodata and north-up geotransform of DESIGN.md.
-  const std::string cmd = "gdalinfo " + dir + "/e.tif > " + dir + "/info.txt 2>&1";
-  ASSERT_EQ(std::system(cmd.c_str()), 0);
-  const std::string info = test::read_text(dir + "/info.txt");
+  const std::string info = gdalinfo(dir + "/e.tif");
   EXPECT_NE(info.find("Origin = (1.000000000000000,4.500000000000000)"), std::string::npos) << info;
   EXPECT_NE(info.find("Pixel Size = (0.250000000000000,-0.250000000000000)"), std::string::npos) << info;
   for (const char* band : {"Band 1 Block", "Description = elevation", "Description = variance", "Description = count",
@@ -155,9 +161,7 @@ TEST(Elevation, GeoTiffStripsHoldAtLeast64KiBOfABand) {
   const auto block_of = [](const ElevationGrid& g, const std::string& dir) {
     io::write_elevation_geotiff(g, dir + "/s.tif");
     expect_same(g, io::read_elevation_geotiff(dir + "/s.tif"), 1e-6);
-    const std::string cmd = "gdalinfo " + dir + "/s.tif > " + dir + "/info.txt 2>&1";
-    EXPECT_EQ(std::system(cmd.c_str()), 0);
-    const std::string info = test::read_text(dir + "/info.txt");
+    const std::string info = gdalinfo(dir + "/s.tif");
     const auto at = info.find("Band 1 Block=");
     return at == std::string::npos ? info : info.substr(at + 13, info.find(' ', at + 13) - at - 13);
   };
