@@ -129,8 +129,10 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
       std::unique_ptr<StageWork> work;
       double seconds;
     };
+    // When only the evidence travels, more may wait for the in-order part: the stage keeps every
+    // pass's evidence anyway, and a worker then need not wait for the calling thread to wake.
     detail::ordered_parallel<Pre>(
-        np, sum.threads, window,
+        np, sum.threads, early ? 4 * window : window,
         [&](std::size_t k) {
           Pre r{read_pass(cfg.scans[k], k), nullptr, 0.0};
           StageReport scratch;
@@ -172,7 +174,7 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   std::string last_file;
   detail::ordered_parallel<Processed>(
       np, sum.threads, window,
-      [&](std::size_t k) {
+      [&](std::size_t k, WorkShare& share) {
         Processed r;
         r.pass = read_pass(cfg.scans[k], k);
         r.reports.resize(stages_.size());
@@ -184,7 +186,7 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
             run_stage(st, r.pass, rep);
           } else if (st.split()) {
             const auto t0 = std::chrono::steady_clock::now();
-            r.works[r.stop] = st.compute(r.pass, rep);
+            r.works[r.stop] = st.compute(r.pass, rep, share);
             rep.seconds += seconds_since(t0);
             rep.in += r.pass.kept();
             rep.out += r.pass.kept();

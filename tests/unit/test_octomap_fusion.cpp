@@ -1,10 +1,13 @@
 #include <gtest/gtest.h>
 
+#include <bitset>
+#include <map>
 #include <random>
 #include <set>
 #include <tuple>
 #include <sstream>
 
+#include "ordered_parallel.hpp"
 #include "pcdp/octomap_fusion.hpp"
 #include "pcdp/pass.hpp"
 #include "pcdp/sim/bench_scenes.hpp"
@@ -217,5 +220,83 @@ TEST(OctoMapFusion, RayWalkGivesComputeRayKeysKeysInOrder) {
       compared += got.size();
     }
     EXPECT_GT(compared, 3000u * 100u);  // the random rays are long: a real comparison
+  }
+}
+
+namespace {
+// Runs the tasks last to first: as if other threads had taken the first ones.
+class ReversedShare final : public WorkShare {
+ public:
+  std::size_t tasks = 0;
+  void run(std::size_t n, const std::function<void(std::size_t)>& task) override {
+    tasks += n;
+    for (std::size_t i = n; i-- > 0;) task(i);
+  }
+};
+}  // namespace
+
+TEST(OctoMapFusion, CastListsTheSameCellsInTheSameOrderWhoeverCastsTheRanges) {
+  // cast_pass hands ranges of returns to a WorkShare and merges them. The lists must be those of
+  // one walk over every ray in return order: the blocks in the order that walk first touches
+  // them, each block's free-only cells, then its occupied ones, in cell order (the reference
+  // below, a map instead of blocks). Serial, reversed and on two threads alike.
+  const Pass pass = static_vehicle_passes().front();
+  ASSERT_GE(pass.size(), 4u * 2048u);  // several ranges
+  OctoMapParams prm;
+  const octomap::OcTree tree = make_octree(prm);
+
+  std::vector<std::uint64_t> order;  // blocks as first touched
+  std::map<std::uint64_t, std::pair<std::bitset<512>, std::bitset<512>>> bits;  // free, occupied
+  std::uint64_t rays = 0;
+  const auto mark = [&](std::uint32_t x, std::uint32_t y, std::uint32_t z, bool occupied) {
+    const BlockPos b = block_pos(x, y, z);
+    auto [it, fresh] = bits.try_emplace(b.block);
+    if (fresh) order.push_back(b.block);
+    (occupied ? it->second.second : it->second.first).set(b.cell);
+  };
+  for (std::size_t i = 0; i < pass.size(); ++i) {
+    if (!pass.is_kept(i) || !std::isfinite(pass.x[i]) || !std::isfinite(pass.ox[i])) continue;
+    const octomap::point3d o(static_cast<float>(pass.ox[i]), static_cast<float>(pass.oy[i]), static_cast<float>(pass.oz[i]));
+    const octomap::point3d e(static_cast<float>(pass.x[i]), static_cast<float>(pass.y[i]), static_cast<float>(pass.z[i]));
+    ++rays;
+    walk_ray_keys(tree, o, e, [&](std::uint32_t x, std::uint32_t y, std::uint32_t z) { mark(x, y, z, false); });
+    octomap::OcTreeKey k;
+    if (tree.coordToKeyChecked(e, k)) mark(k[0], k[1], k[2], true);
+  }
+  std::vector<octomap::OcTreeKey> free_ref, occupied_ref;
+  for (const std::uint64_t b : order) {
+    const auto& [fr, oc] = bits.at(b);
+    for (unsigned c = 0; c < 512; ++c) {
+      std::uint32_t x, y, z;
+      voxel_of({b, c}, x, y, z);
+      const octomap::OcTreeKey k(static_cast<octomap::key_type>(x), static_cast<octomap::key_type>(y), static_cast<octomap::key_type>(z));
+      if (fr[c] && !oc[c]) free_ref.push_back(k);
+    }
+    for (unsigned c = 0; c < 512; ++c) {
+      std::uint32_t x, y, z;
+      voxel_of({b, c}, x, y, z);
+      if (oc[c]) occupied_ref.emplace_back(static_cast<octomap::key_type>(x), static_cast<octomap::key_type>(y), static_cast<octomap::key_type>(z));
+    }
+  }
+  ASSERT_GT(free_ref.size(), 10000u);
+  ASSERT_GT(occupied_ref.size(), 1000u);
+
+  ReversedShare reversed;
+  std::vector<PassRays> got;
+  got.push_back(cast_pass(tree, pass, prm));
+  got.push_back(cast_pass(tree, pass, prm, reversed));
+  EXPECT_GT(reversed.tasks, 1u);
+  detail::ordered_parallel<int>(
+      2, 2, 2,
+      [&](std::size_t k, WorkShare& share) {
+        if (k == 1) got.push_back(cast_pass(tree, pass, prm, share));  // item 0 ends at once: its worker helps
+        return 0;
+      },
+      [](std::size_t, int) {});
+  ASSERT_EQ(got.size(), 3u);
+  for (std::size_t g = 0; g < got.size(); ++g) {
+    EXPECT_EQ(got[g].rays, rays) << g;
+    EXPECT_TRUE(got[g].free_list == free_ref) << g;
+    EXPECT_TRUE(got[g].occupied_list == occupied_ref) << g;
   }
 }

@@ -19,6 +19,7 @@
 #include <octomap/OcTree.h>
 
 #include "pcdp/voxel_blocks.hpp"
+#include "pcdp/work_share.hpp"
 
 #include <cstdint>
 
@@ -102,8 +103,11 @@ bool walk_ray_keys(const octomap::OcTree& tree, const octomap::point3d& o, const
 }
 
 /// Casts the kept returns of a registered pass (the costly part; reads only the tree's key
-/// geometry, so it can run while another thread updates a tree of the same resolution).
-PassRays cast_pass(const octomap::OcTree& tree, const Pass& pass, const OctoMapParams& p);
+/// geometry, so it can run while another thread updates a tree of the same resolution). The
+/// returns are cast in ranges handed to `share` (idle threads may take some); the result is the
+/// same whoever casts them.
+PassRays cast_pass(const octomap::OcTree& tree, const Pass& pass, const OctoMapParams& p,
+                   WorkShare& share = WorkShare::serial());
 
 /// Applies one pass's cells to the tree: free first, then occupied, then the inner nodes.
 void apply_rays(octomap::OcTree& tree, const PassRays& rays);

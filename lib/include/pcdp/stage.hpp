@@ -15,6 +15,7 @@
 #include "pcdp/labels.hpp"
 #include "pcdp/options.hpp"
 #include "pcdp/transforms.hpp"
+#include "pcdp/work_share.hpp"
 
 namespace pcdp {
 
@@ -63,8 +64,11 @@ class Stage {
   /// line of the pass, or every pass).
   virtual int stream_reach() const { return -1; }
   virtual bool split() const { return false; }
-  /// split() stages: the per-pass part; must not change the stage.
-  virtual std::unique_ptr<StageWork> compute(const Pass& /*pass*/, StageReport& /*report*/) const { return nullptr; }
+  /// split() stages: the per-pass part; must not change the stage. It may divide its work into
+  /// tasks for `share` (threads with no pass to take run some of them).
+  virtual std::unique_ptr<StageWork> compute(const Pass& /*pass*/, StageReport& /*report*/, WorkShare& /*share*/) const {
+    return nullptr;
+  }
   /// split() stages: folds one pass's work into the stage's state, in pass order.
   virtual void apply(std::unique_ptr<StageWork> /*work*/, StageReport& /*report*/) {}
   /// Processes one pass in place: may set labels, points, ranges. Must not change which

@@ -645,45 +645,45 @@ void ConsistencyEvidence::find_lonely(unsigned threads) {
     pl.rays = static_cast<std::uint32_t>(pr.rays.size());
   }
   const std::vector<Chunk> work = chunks();
-  detail::ordered_parallel<Found>(
-      work.size(), threads, 2 * threads,
-      [&](std::size_t w) {
-        Found f;
-        const PassRays& pr = passes_[work[w].pass];
-        std::uint64_t last = ~0ull;
-        bool last_lonely = false;
-        for (std::size_t i = work[w].begin; i < work[w].end; ++i) {
-          const Ray& r = pr.rays[i];
-          if (r.voxel != last) {  // neighbours along a line often share a voxel
-            last = r.voxel;
-            last_lonely = !other_hit_near(r.voxel, pr.bit);
-          }
-          if (last_lonely) {
-            std::uint32_t c[3];
-            unpack(r.voxel, c);
-            Lonely l{r.voxel, {}, 0, 0};
-            for (int a = 0; a < 3; ++a) l.v[a] = unwrap(c[a], (pr.anchor[a] + static_cast<double>(r.e[a])) / p_.resolution);
-            f.voxels.push_back(l);
-            f.rays.push_back(static_cast<std::uint32_t>(i));
-          }
-        }
-        return f;
-      },
-      [&](std::size_t w, Found&& f) {
-        const PassRays& pr = passes_[work[w].pass];
-        stats_.lonely_returns += f.voxels.size();
-        PassLonely& pl = pass_lonely_[pr.index];
-        for (std::size_t k = 0; k < f.voxels.size(); ++k) {
-          const Lonely& l = f.voxels[k];
-          std::uint32_t& slot = lonely_index_[l.key];  // position + 1; 0: new
-          if (slot == 0) {
-            lonely_.push_back(l);
-            slot = static_cast<std::uint32_t>(lonely_.size());
-          }
-          lonely_[slot - 1].passes |= pr.bit;
-          pl.lonely.emplace_back(f.rays[k], slot - 1);
-        }
-      });
+  // The pieces' results are small (the lonely returns only): all are kept, then merged in order.
+  std::vector<Found> found(work.size());
+  detail::parallel_for(work.size(), threads, [&](std::size_t w) {
+    Found& f = found[w];
+    const PassRays& pr = passes_[work[w].pass];
+    std::uint64_t last = ~0ull;
+    bool last_lonely = false;
+    for (std::size_t i = work[w].begin; i < work[w].end; ++i) {
+      const Ray& r = pr.rays[i];
+      if (r.voxel != last) {  // neighbours along a line often share a voxel
+        last = r.voxel;
+        last_lonely = !other_hit_near(r.voxel, pr.bit);
+      }
+      if (last_lonely) {
+        std::uint32_t c[3];
+        unpack(r.voxel, c);
+        Lonely l{r.voxel, {}, 0, 0};
+        for (int a = 0; a < 3; ++a) l.v[a] = unwrap(c[a], (pr.anchor[a] + static_cast<double>(r.e[a])) / p_.resolution);
+        f.voxels.push_back(l);
+        f.rays.push_back(static_cast<std::uint32_t>(i));
+      }
+    }
+  });
+  for (std::size_t w = 0; w < work.size(); ++w) {
+    const Found& f = found[w];
+    const PassRays& pr = passes_[work[w].pass];
+    stats_.lonely_returns += f.voxels.size();
+    PassLonely& pl = pass_lonely_[pr.index];
+    for (std::size_t k = 0; k < f.voxels.size(); ++k) {
+      const Lonely& l = f.voxels[k];
+      std::uint32_t& slot = lonely_index_[l.key];  // position + 1; 0: new
+      if (slot == 0) {
+        lonely_.push_back(l);
+        slot = static_cast<std::uint32_t>(lonely_.size());
+      }
+      lonely_[slot - 1].passes |= pr.bit;
+      pl.lonely.emplace_back(f.rays[k], slot - 1);
+    }
+  }
   stats_.lonely_voxels = lonely_.size();
 }
 
@@ -706,55 +706,54 @@ void ConsistencyEvidence::walk_rays(unsigned threads) {
     std::uint64_t walked = 0, fanned = 0;
   };
   const std::vector<Chunk> work = line_chunks();
-  detail::ordered_parallel<Crossed>(
-      work.size(), threads, 2 * threads,
-      [&](std::size_t w) {
-        Crossed out;
-        const PassRays& pr = passes_[work[w].pass];
-        std::vector<RayExtent> rays;
-        std::vector<float> dist;
-        Fan fan;
-        Segment s;
-        for (std::size_t k = work[w].begin; k < work[w].end; ++k) {
-          rays.clear();
-          RayExtent x;
-          for (std::uint32_t i = pr.lines[k]; i < pr.lines[k + 1]; ++i)
-            if (extent_of(pr.rays[i], pr.anchor, p_, x)) rays.push_back(x);
-          out.walked += rays.size();
-          if (make_fan(rays, max_dev, fan)) {
-            out.fanned += rays.size();
-            for_each_in_fan(fan, centres, lonely_, res, dist, [&](std::size_t j, std::uint32_t i) {
-              // Most candidates pass wide of the voxel: a ray that enters it passes within
-              // `half` of its centre (no division: |w x dl| against half |dl|).
-              const RayExtent& ray = rays[i];
-              double to[3];
-              for (int a = 0; a < 3; ++a) to[a] = centre_of(lonely_[j].v[a], res) - ray.o[a];
-              const double c[3] = {to[1] * ray.dl[2] - to[2] * ray.dl[1], to[2] * ray.dl[0] - to[0] * ray.dl[2],
-                                   to[0] * ray.dl[1] - to[1] * ray.dl[0]};
-              if (dot3(c, c) > near2 * (ray.len * ray.len)) return;
-              segment_of(ray, p_, s);
-              if (crosses(s, lonely_[j].v, res)) out.lonely.push_back(static_cast<std::uint32_t>(j));
-            });
-            continue;
-          }
-          std::call_once(cells_built, [&] { cells.emplace(lonely_, 4, res); });
-          for (const RayExtent& g : rays) {
-            segment_of(g, p_, s);
-            set_inverse(s);
-            cells->for_each_near(s, res, [&](const LonelyCells::Box& b) {
-              if (crosses(s, b.v, res)) out.lonely.push_back(b.index);
-            });
-          }
-        }
-        return out;
-      },
-      [&](std::size_t w, Crossed&& c) {
-        const std::uint64_t bit = passes_[work[w].pass].bit;
-        stats_.rays_walked += c.walked;
-        stats_.rays_in_fans += c.fanned;
-        stats_.crossings += c.lonely.size();
-        for (const std::uint32_t i : c.lonely) lonely_[i].free |= bit;
-      });
+  std::vector<Crossed> crossed(work.size());  // small: the crossings only
+  detail::parallel_for(work.size(), threads, [&](std::size_t w) {
+    Crossed& out = crossed[w];
+    const PassRays& pr = passes_[work[w].pass];
+    std::vector<RayExtent> rays;
+    std::vector<float> dist;
+    Fan fan;
+    Segment s;
+    for (std::size_t k = work[w].begin; k < work[w].end; ++k) {
+      rays.clear();
+      RayExtent x;
+      for (std::uint32_t i = pr.lines[k]; i < pr.lines[k + 1]; ++i)
+        if (extent_of(pr.rays[i], pr.anchor, p_, x)) rays.push_back(x);
+      out.walked += rays.size();
+      if (make_fan(rays, max_dev, fan)) {
+        out.fanned += rays.size();
+        for_each_in_fan(fan, centres, lonely_, res, dist, [&](std::size_t j, std::uint32_t i) {
+          // Most candidates pass wide of the voxel: a ray that enters it passes within
+          // `half` of its centre (no division: |w x dl| against half |dl|).
+          const RayExtent& ray = rays[i];
+          double to[3];
+          for (int a = 0; a < 3; ++a) to[a] = centre_of(lonely_[j].v[a], res) - ray.o[a];
+          const double c[3] = {to[1] * ray.dl[2] - to[2] * ray.dl[1], to[2] * ray.dl[0] - to[0] * ray.dl[2],
+                               to[0] * ray.dl[1] - to[1] * ray.dl[0]};
+          if (dot3(c, c) > near2 * (ray.len * ray.len)) return;
+          segment_of(ray, p_, s);
+          if (crosses(s, lonely_[j].v, res)) out.lonely.push_back(static_cast<std::uint32_t>(j));
+        });
+        continue;
+      }
+      std::call_once(cells_built, [&] { cells.emplace(lonely_, 4, res); });
+      for (const RayExtent& g : rays) {
+        segment_of(g, p_, s);
+        set_inverse(s);
+        cells->for_each_near(s, res, [&](const LonelyCells::Box& b) {
+          if (crosses(s, b.v, res)) out.lonely.push_back(b.index);
+        });
+      }
+    }
+  });
+  for (std::size_t w = 0; w < work.size(); ++w) {
+    const Crossed& c = crossed[w];
+    const std::uint64_t bit = passes_[work[w].pass].bit;
+    stats_.rays_walked += c.walked;
+    stats_.rays_in_fans += c.fanned;
+    stats_.crossings += c.lonely.size();
+    for (const std::uint32_t i : c.lonely) lonely_[i].free |= bit;
+  }
 }
 
 void ConsistencyEvidence::finalize(unsigned threads) {

@@ -74,7 +74,7 @@ class FuseElevationStage final : public Stage {
   bool split() const override { return true; }
   // The samples this pass adds, computed on the worker (copied, since later stages may still
   // change the pass); in order, the grid only looks their cells up and sums.
-  std::unique_ptr<StageWork> compute(const Pass& pass, StageReport&) const override {
+  std::unique_ptr<StageWork> compute(const Pass& pass, StageReport&, WorkShare&) const override {
     auto w = std::make_unique<Work>();
     w->samples = samples(grid_, pass, params_, fallback_var_);
     return w;

@@ -29,16 +29,16 @@ class FuseOctoMapStage final : public Stage {
   FuseOctoMapStage(OctoMapParams p, bool write_ot)
       : params_(p), write_ot_(write_ot), caster_(make_octree(p)), cells_(p) {}
   bool split() const override { return true; }
-  std::unique_ptr<StageWork> compute(const Pass& pass, StageReport& report) const override {
+  std::unique_ptr<StageWork> compute(const Pass& pass, StageReport& report, WorkShare& share) const override {
     auto w = std::make_unique<Work>();
-    w->rays = cast_pass(caster_, pass, params_);
+    w->rays = cast_pass(caster_, pass, params_, share);
     report.metrics["rays"] += static_cast<double>(w->rays.rays);
     return w;
   }
   // In pass order: each pass's cells into the log-odds accumulator (map.bt is encoded from it in
   // finish: the same leaves as updating a tree pass by pass, at a fraction of the cost).
   void apply(std::unique_ptr<StageWork> work, StageReport&) override { cells_.add(static_cast<Work&>(*work).rays); }
-  void process(Pass& pass, StageReport& report) override { apply(compute(pass, report), report); }
+  void process(Pass& pass, StageReport& report) override { apply(compute(pass, report, WorkShare::serial()), report); }
   void finish(OutputSink& sink, StageReport& report) override {
     // map.bt straight from the accumulated leaves (the same bytes as building OctoMap's tree and
     // writing it, at a fraction of the time and memory); the tree is built only for map.ot.
