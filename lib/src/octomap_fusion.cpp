@@ -34,10 +34,16 @@ constexpr std::size_t kCastRanges = 8, kCastRangeMin = 2048;
 }  // namespace
 
 namespace {
+// A range's blocks in the order first touched (without the grid's directory, which may be large).
+struct RangeCells {
+  std::vector<std::uint64_t> keys;
+  std::vector<CellBlock> blocks;
+};
+
 // The cells the kept rays of returns [begin, end) cross (free) and end in (occupied), a bit each,
-// in 8^3 blocks (voxel_blocks.hpp) in the order first touched, with a dense directory over the
-// keys the rays can reach (a ray stays within its ends' keys).
-BlockGrid<CellBlock> cast_range(const octomap::OcTree& tree, const Pass& pass, const OctoMapParams& p, std::size_t begin,
+// in 8^3 blocks (voxel_blocks.hpp) in the order first touched, found through a dense directory
+// over the keys the rays can reach (a ray stays within its ends' keys).
+RangeCells cast_range(const octomap::OcTree& tree, const Pass& pass, const OctoMapParams& p, std::size_t begin,
                                 std::size_t end, std::uint64_t& rays) {
   // The ray of return i: its origin and end point, the end cut at max_range (then not a hit).
   const auto ray_of = [&](std::size_t i, octomap::point3d& o, octomap::point3d& e) {
@@ -76,7 +82,14 @@ BlockGrid<CellBlock> cast_range(const octomap::OcTree& tree, const Pass& pass, c
     octomap::OcTreeKey k;
     if (tree.coordToKeyChecked(e, k)) mark(k[0], k[1], k[2], hit);  // a cut end is free
   }
-  return cells;
+  RangeCells out;
+  out.keys.reserve(cells.size());
+  out.blocks.reserve(cells.size());
+  for (std::size_t b = 0; b < cells.size(); ++b) {
+    out.keys.push_back(cells.key(b));
+    out.blocks.push_back(cells[b]);
+  }
+  return out;  // the directory is freed here, not held until every range is cast
 }
 }  // namespace
 
@@ -88,39 +101,42 @@ PassRays cast_pass(const octomap::OcTree& tree, const Pass& pass, const OctoMapP
   // depend on the ranges nor on who cast them (tested against one range).
   const std::size_t n = pass.size();
   const std::size_t ranges = std::max<std::size_t>(1, std::min(kCastRanges, n / kCastRangeMin));
-  std::vector<BlockGrid<CellBlock>> part(ranges);
+  std::vector<RangeCells> part(ranges);
   std::vector<std::uint64_t> rays(ranges, 0);
   share.run(ranges, [&](std::size_t r) { part[r] = cast_range(tree, pass, p, n * r / ranges, n * (r + 1) / ranges, rays[r]); });
   PassRays out;
-  const BlockGrid<CellBlock>* cells = &part[0];
-  BlockGrid<CellBlock> merged;
+  for (std::uint64_t r : rays) out.rays += r;
   if (ranges > 1) {
     VoxelBounds bounds;  // the ranges' blocks span at most these voxels
-    for (const auto& g : part)
-      for (std::size_t b = 0; b < g.size(); ++b) {
+    for (const RangeCells& rc : part)
+      for (const std::uint64_t key : rc.keys) {
         std::uint32_t x, y, z;
-        voxel_of({g.key(b), 0}, x, y, z);
+        voxel_of({key, 0}, x, y, z);
         bounds.add(x, y, z);
       }
-    merged = BlockGrid<CellBlock>(bounds, 0x5bd1e995u);
-    for (const auto& g : part)
-      for (std::size_t b = 0; b < g.size(); ++b) {
-        CellBlock& into = merged.block(g.key(b));
+    BlockGrid<CellBlock> merged(bounds, 0x5bd1e995u);
+    for (const RangeCells& rc : part)
+      for (std::size_t b = 0; b < rc.keys.size(); ++b) {
+        CellBlock& into = merged.block(rc.keys[b]);
         for (int w = 0; w < 8; ++w) {
-          into.free[w] |= g[b].free[w];
-          into.occupied[w] |= g[b].occupied[w];
+          into.free[w] |= rc.blocks[b].free[w];
+          into.occupied[w] |= rc.blocks[b].occupied[w];
         }
       }
-    cells = &merged;
+    part.assign(1, RangeCells{});
+    for (std::size_t b = 0; b < merged.size(); ++b) {
+      part[0].keys.push_back(merged.key(b));
+      part[0].blocks.push_back(merged[b]);
+    }
   }
-  for (std::uint64_t r : rays) out.rays += r;
-  for (std::size_t b = 0; b < cells->size(); ++b) {
-    const CellBlock& blk = (*cells)[b];
+  const RangeCells& cells = part[0];
+  for (std::size_t b = 0; b < cells.keys.size(); ++b) {
+    const CellBlock& blk = cells.blocks[b];
     std::uint64_t free_only[8];
     for (int w = 0; w < 8; ++w) free_only[w] = blk.free[w] & ~blk.occupied[w];
     const auto push = [&](std::vector<octomap::OcTreeKey>& list, unsigned c) {
       std::uint32_t x, y, z;
-      voxel_of({cells->key(b), c}, x, y, z);
+      voxel_of({cells.keys[b], c}, x, y, z);
       list.emplace_back(static_cast<octomap::key_type>(x), static_cast<octomap::key_type>(y), static_cast<octomap::key_type>(z));
     };
     for_each_bit(free_only, [&](unsigned c) { push(out.free_list, c); });
