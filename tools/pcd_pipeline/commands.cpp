@@ -65,8 +65,9 @@ int cmd_run(const RunArgs& a) {
       std::fflush(stderr);
     };
   }
-  unsigned threads = a.threads ? a.threads : std::max(1u, std::thread::hardware_concurrency());
-  threads = static_cast<unsigned>(std::min<std::size_t>(threads, std::max<std::size_t>(1, p.config().scans.size())));
+  // Not capped at the number of passes: threads with no pass to take share the last passes'
+  // ray casts (work_share.hpp) and write the products at the end.
+  const unsigned threads = a.threads ? a.threads : std::max(1u, std::thread::hardware_concurrency());
   const RunSummary s = p.run(progress, threads);
   if (tty) std::fprintf(stderr, "\r\033[K");
   if (!a.quiet) {
