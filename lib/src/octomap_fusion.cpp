@@ -31,9 +31,7 @@ struct CellBlock {
 // pass): enough for two threads to share the last pass of a run (1-2 ms a range on the bench's
 // passes of 18 k returns), few enough that merging them costs nothing measurable.
 constexpr std::size_t kCastRanges = 8, kCastRangeMin = 2048;
-}  // namespace
 
-namespace {
 // A range's blocks in the order first touched (without the grid's directory, which may be large).
 struct RangeCells {
   std::vector<std::uint64_t> keys;
@@ -44,7 +42,7 @@ struct RangeCells {
 // in 8^3 blocks (voxel_blocks.hpp) in the order first touched, found through a dense directory
 // over the keys the rays can reach (a ray stays within its ends' keys).
 RangeCells cast_range(const octomap::OcTree& tree, const Pass& pass, const OctoMapParams& p, std::size_t begin,
-                                std::size_t end, std::uint64_t& rays) {
+                      std::size_t end, std::uint64_t& rays) {
   // The ray of return i: its origin and end point, the end cut at max_range (then not a hit).
   const auto ray_of = [&](std::size_t i, octomap::point3d& o, octomap::point3d& e) {
     o = octomap::point3d(static_cast<float>(pass.ox[i]), static_cast<float>(pass.oy[i]), static_cast<float>(pass.oz[i]));
@@ -98,7 +96,7 @@ PassRays cast_pass(const octomap::OcTree& tree, const Pass& pass, const OctoMapP
   // then merged. A pass's cells are the union of its ranges' cells, occupied winning over free
   // in the union; and the blocks, taken range by range, each range's in the order it first touched
   // them, come in the order one cast of the whole pass first touches them. So the lists do not
-  // depend on the ranges nor on who cast them (tested against one range).
+  // depend on the ranges nor on who cast them (tested against one walk over the whole pass).
   const std::size_t n = pass.size();
   const std::size_t ranges = std::max<std::size_t>(1, std::min(kCastRanges, n / kCastRangeMin));
   std::vector<RangeCells> part(ranges);
@@ -106,42 +104,39 @@ PassRays cast_pass(const octomap::OcTree& tree, const Pass& pass, const OctoMapP
   share.run(ranges, [&](std::size_t r) { part[r] = cast_range(tree, pass, p, n * r / ranges, n * (r + 1) / ranges, rays[r]); });
   PassRays out;
   for (std::uint64_t r : rays) out.rays += r;
-  if (ranges > 1) {
-    VoxelBounds bounds;  // the ranges' blocks span at most these voxels
-    for (const RangeCells& rc : part)
-      for (const std::uint64_t key : rc.keys) {
-        std::uint32_t x, y, z;
-        voxel_of({key, 0}, x, y, z);
-        bounds.add(x, y, z);
-      }
-    BlockGrid<CellBlock> merged(bounds, 0x5bd1e995u);
-    for (const RangeCells& rc : part)
-      for (std::size_t b = 0; b < rc.keys.size(); ++b) {
-        CellBlock& into = merged.block(rc.keys[b]);
-        for (int w = 0; w < 8; ++w) {
-          into.free[w] |= rc.blocks[b].free[w];
-          into.occupied[w] |= rc.blocks[b].occupied[w];
-        }
-      }
-    part.assign(1, RangeCells{});
-    for (std::size_t b = 0; b < merged.size(); ++b) {
-      part[0].keys.push_back(merged.key(b));
-      part[0].blocks.push_back(merged[b]);
-    }
-  }
-  const RangeCells& cells = part[0];
-  for (std::size_t b = 0; b < cells.keys.size(); ++b) {
-    const CellBlock& blk = cells.blocks[b];
+  // Each block's free-only cells, then its occupied ones, in cell order.
+  const auto emit = [&](std::uint64_t key, const CellBlock& blk) {
     std::uint64_t free_only[8];
     for (int w = 0; w < 8; ++w) free_only[w] = blk.free[w] & ~blk.occupied[w];
     const auto push = [&](std::vector<octomap::OcTreeKey>& list, unsigned c) {
       std::uint32_t x, y, z;
-      voxel_of({cells.keys[b], c}, x, y, z);
+      voxel_of({key, c}, x, y, z);
       list.emplace_back(static_cast<octomap::key_type>(x), static_cast<octomap::key_type>(y), static_cast<octomap::key_type>(z));
     };
     for_each_bit(free_only, [&](unsigned c) { push(out.free_list, c); });
     for_each_bit(blk.occupied, [&](unsigned c) { push(out.occupied_list, c); });
+  };
+  if (ranges == 1) {
+    for (std::size_t b = 0; b < part[0].keys.size(); ++b) emit(part[0].keys[b], part[0].blocks[b]);
+    return out;
   }
+  VoxelBounds bounds;  // the ranges' blocks span at most these voxels
+  for (const RangeCells& rc : part)
+    for (const std::uint64_t key : rc.keys) {
+      std::uint32_t x, y, z;
+      voxel_of({key, 0}, x, y, z);
+      bounds.add(x, y, z);
+    }
+  BlockGrid<CellBlock> merged(bounds, 0x5bd1e995u);
+  for (const RangeCells& rc : part)
+    for (std::size_t b = 0; b < rc.keys.size(); ++b) {
+      CellBlock& into = merged.block(rc.keys[b]);
+      for (int w = 0; w < 8; ++w) {
+        into.free[w] |= rc.blocks[b].free[w];
+        into.occupied[w] |= rc.blocks[b].occupied[w];
+      }
+    }
+  for (std::size_t b = 0; b < merged.size(); ++b) emit(merged.key(b), merged[b]);
   return out;
 }
 

@@ -10,6 +10,7 @@
 // workers wait.
 #pragma once
 
+#include <algorithm>
 #include <atomic>
 #include <condition_variable>
 #include <cstddef>
@@ -40,8 +41,7 @@ class SharedTasks final : public WorkShare {
   bool help(std::unique_lock<std::mutex>& lock) {
     if (jobs_.empty()) return false;
     Job& job = *jobs_.front();
-    const std::size_t i = job.claimed++;
-    if (job.claimed == job.n) jobs_.pop_front();
+    const std::size_t i = claim(job);
     lock.unlock();
     run_task(job, i);
     lock.lock();
@@ -63,13 +63,7 @@ class SharedTasks final : public WorkShare {
       {
         std::lock_guard<std::mutex> lock(m);
         if (job.claimed == job.n) break;
-        i = job.claimed++;
-        if (job.claimed == job.n)
-          for (auto it = jobs_.begin(); it != jobs_.end(); ++it)
-            if (*it == &job) {
-              jobs_.erase(it);
-              break;
-            }
+        i = claim(job);
       }
       run_task(job, i);
     }
@@ -85,6 +79,12 @@ class SharedTasks final : public WorkShare {
     std::size_t error_index = ~std::size_t{0};
     std::exception_ptr error;
   };
+  // With the lock held: the job's next task; the job leaves the queue with its last.
+  std::size_t claim(Job& job) {
+    const std::size_t i = job.claimed++;
+    if (job.claimed == job.n) jobs_.erase(std::find(jobs_.begin(), jobs_.end(), &job));
+    return i;
+  }
   void run_task(Job& job, std::size_t i) {
     std::exception_ptr e;
     try {
