@@ -359,10 +359,10 @@ int cmd_bench(const BenchArgs& a) {
   const double t1 = median(totals), t2 = median(totals2);
   std::vector<double> paired;  // each 2-thread run against the 1-thread run just before it
   for (std::size_t r = 0; r < totals.size(); ++r) paired.push_back(totals[r] / totals2[r]);
+  const auto [lo, hi] = std::minmax_element(paired.begin(), paired.end());
   std::printf("  whole run on 2 threads: %.3f s against %.3f s on 1: %.2fx (target >= 1.7; run by run %.2f-%.2fx); "
               "%zu output file(s) compared, %s\n",
-              t2, t1, t1 / t2, *std::min_element(paired.begin(), paired.end()), *std::max_element(paired.begin(), paired.end()),
-              compared, differ ? "SOME DIFFER" : "all byte-identical");
+              t2, t1, t1 / t2, *lo, *hi, compared, differ ? "SOME DIFFER" : "all byte-identical");
   std::fflush(stdout);
   if (!a.scaling.empty()) return run_scaling(a, scratch.path);
   return 0;
