@@ -148,6 +148,44 @@ TEST(RejectMixedPixels, AtACornerTheVeilIsFlaggedAndAFaceSeenEdgeOnIsNot) {
   EXPECT_EQ(reject_mixed_pixels(face, MixedPixelParams{}, coaxial_sensor()), 0u);
 }
 
+TEST(RejectMixedPixels, AOneBeamSpikeWhoseRangeChangesAcrossLinesIsAMixtureWithAThinObject) {
+  // A wall at 10 m; at beam 10, something one return wide in front of it in every line. Both
+  // along-line neighbours are the wall, so along the line a thin post and a mixture of a post
+  // with the wall look alike; across lines they do not.
+  const auto lines = [](const std::vector<float>& spike) {
+    std::vector<std::vector<float>> rows;
+    for (float c : spike) {
+      std::vector<float> row(21, 10.0f);
+      row[10] = c;
+      rows.push_back(row);
+    }
+    return rows;
+  };
+  const auto flagged = [](Pass p, bool spikes) {
+    MixedPixelParams mp;
+    mp.spikes = spikes;
+    reject_mixed_pixels(p, mp, coaxial_sensor());
+    std::vector<bool> f;
+    for (std::size_t k = 0; k < p.line_count(); ++k) f.push_back(p.label[p.line_begin[k] + 10] == Label::kMixedPixel);
+    return f;
+  };
+  // A mixture: the range follows the share of the footprint on the thin object, which changes
+  // from line to line. Every line is flagged, the first and last too (one neighbour across is
+  // enough: the return is on neither); nothing else is.
+  const Pass mixture = grid_pass(lines({8.0f, 8.6f, 9.2f, 8.3f, 7.7f, 8.9f}));
+  EXPECT_EQ(flagged(mixture, true), std::vector<bool>(6, true));
+  Pass all = mixture;
+  EXPECT_EQ(reject_mixed_pixels(all, MixedPixelParams{}, coaxial_sensor()), 6u);
+  // Without it, the across-line edge tests find some of them, not the first and last lines.
+  const std::vector<bool> without = flagged(mixture, false);
+  EXPECT_LT(std::count(without.begin(), without.end(), true), 6);
+  EXPECT_FALSE(without.front());
+  EXPECT_FALSE(without.back());
+  // A thin post keeps its range from line to line; its top return has the post below it.
+  EXPECT_EQ(flagged(grid_pass(lines({6.0f, 6.0f, 6.01f, 6.0f, 6.0f, 6.0f})), true), std::vector<bool>(6, false));
+  EXPECT_EQ(flagged(grid_pass(lines({6.0f, 6.0f, 6.0f, 10.0f, 10.0f, 10.0f})), true), std::vector<bool>(6, false));
+}
+
 TEST(RejectMixedPixels, GrazingGroundIsKept) {
   // Flat ground only, scanned near the horizon: ranges grow fast but smoothly across lines.
   sim::SimConfig c;
@@ -174,8 +212,9 @@ TEST(RejectMixedPixels, GrazingGroundIsKept) {
 
 TEST(RejectMixedPixels, OnSimulatedScenesOfTwoSensorSettings) {
   // The same seeds as bench/pcdp_mixed_bench (which adds the baselines). Measured: A 0.901
-  // (630/699), B 0.923 (240/260), both at the target of 0.90; A is held at 0.895 here
-  // because 0.90 would be one return away (docs/mixed_pixels.md: seeds 4-9 too).
+  // (630/699), B 0.958 (249/260; 0.923 before the spike test), both at the target of
+  // 0.90; A is held at 0.895 here because 0.90 would be one return away, B at 0.94 so that losing
+  // the spike test fails (docs/mixed_pixels.md: seeds 4-9 too).
   for (char which : {'A', 'B'}) {
     std::uint64_t pos = 0, tp = 0, valid = 0, fp = 0;
     for (std::uint64_t seed = 1; seed <= 3; ++seed) {
@@ -206,7 +245,7 @@ TEST(RejectMixedPixels, OnSimulatedScenesOfTwoSensorSettings) {
     const double false_rate = static_cast<double>(fp) / static_cast<double>(valid);
     std::cout << which << ": recall " << recall << " (" << tp << "/" << pos << "), valid rejected " << 100 * false_rate << " %\n";
     EXPECT_LE(false_rate, 0.01) << which;
-    EXPECT_GE(recall, which == 'B' ? 0.90 : 0.895) << which;
+    EXPECT_GE(recall, which == 'B' ? 0.94 : 0.895) << which;
   }
 }
 

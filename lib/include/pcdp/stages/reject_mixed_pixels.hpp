@@ -30,6 +30,14 @@
 // three adjacent returns of one smooth surface, allowing a quarter step; else linear, half a step)
 // by more than the tolerance and the edge jump, does not continue the surface beyond the void,
 // and has the beam geometry of 3. The end of a scan is not a void (ReturnsView::ends_are_voids).
+// Spikes (`spikes`, organized passes with across_lines): a return one beam wide, nearer by more
+// than an edge jump than both its neighbours along the line, which agree with each other (one
+// surface behind it), is a thin object or a mixture of one with the surface behind. A thin object
+// (a post) keeps its range from line to line, and the top return of a post has the post below
+// it; a mixture's range follows the share of the footprint on the object, which changes as the
+// scan moves. So a spike is a mixed pixel where it differs by more than the tolerance from each
+// neighbour it has across lines (one is enough: at a sweep's end there is one). Not used on
+// unorganized clouds, whose range-image bands interleave neighbouring lines.
 // Across lines, each nod sweep is a sequence of its own (lines fold back where the nod reverses).
 // Amplitudes at or above amplitude_saturation (clipped) skip test 4.
 // Only the return itself is labelled `mixed_pixel`, never a window of neighbours.
@@ -60,6 +68,7 @@ struct MixedPixelParams {
   bool across_lines = true;
   double amplitude_saturation = 255.0;  ///< clipped amplitudes say nothing about the mixture
   bool one_sided = true;
+  bool spikes = true;                ///< one-beam spikes in front of a surface, off their neighbours across lines
   int max_span = 6;                  ///< steps between the two sides' nearest neighbours
 };
 
@@ -108,7 +117,7 @@ enum class CloudAngles {
 /// same tests run along both. A nodding scanner's lines are rows of equal nod (kNodding); its
 /// elevation varies along a line, so elevation bands (kSpherical) cut across its lines.
 /// `resolution` is about the scan's angular step. `amplitude` may be empty. Returns a mask of
-/// mixed pixels.
+/// mixed pixels. The spike test is not used here (see above).
 std::vector<char> mixed_pixels_in_cloud(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& viewpoint,
                                         const std::vector<float>& amplitude, double resolution,
                                         const MixedPixelParams& p, double range_sigma,
