@@ -249,13 +249,13 @@ void mark_spikes(const ReturnsView& v, const std::vector<std::size_t>& seq, cons
   }
 }
 
-/// Off every surface in a sequence: the return has at least one usable immediate neighbour, and
-/// differs from each one it has by more than the tolerance.
-void mark_off_surface(const ReturnsView& v, const std::vector<std::size_t>& seq, const MixedPixelParams& p,
-                      double range_sigma, std::vector<char>& off) {
+/// Spikes off every surface in a sequence (the other direction): the spike has at least one
+/// usable immediate neighbour, and differs from each one it has by more than the tolerance.
+void mark_spikes_off_surface(const ReturnsView& v, const std::vector<std::size_t>& seq, const MixedPixelParams& p,
+                             double range_sigma, const std::vector<char>& spike, std::vector<char>& off) {
   for (std::size_t pos = 0; pos < seq.size(); ++pos) {
     const std::size_t i = seq[pos];
-    if (!v.usable[i]) continue;
+    if (!spike[i]) continue;
     const double tol = p.range_tolerance + p.range_tolerance_ratio * v.range[i] + 3.0 * range_sigma;
     int seen = 0, off_it = 0;
     for (const std::size_t q : {pos - 1, pos + 1}) {  // pos - 1 wraps past the end at pos 0
@@ -292,7 +292,7 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
   // Candidates along and across lines (2: strong edge, 1: weak edge), and where each return lies
   // smoothly on a surface in each direction. A weak-edge candidate that is smooth in the other
   // direction is grazing ground, not a veil.
-  std::vector<char> along(n, 0), across(n, 0), smooth_along(n, 0), smooth_across(n, 0), spike(n, 0), off_across(n, 0);
+  std::vector<char> along(n, 0), across(n, 0), smooth_along(n, 0), smooth_across(n, 0), spike(n, 0), spike_off(n, 0);
   std::vector<std::size_t> seq;
   for (std::size_t k = 0; k < pass.line_count(); ++k) {
     seq.clear();
@@ -322,12 +322,12 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
         for (std::size_t k = sweep_begin[s]; k < sweep_begin[s + 1]; ++k) seq.push_back(pass.line_begin[k] + b);
         mark_mixed_pixels(v, seq, p, sensor.range_sigma, coaxial, across);
         mark_smooth(v, seq, p, sensor.range_sigma, smooth_across);
-        if (p.spikes) mark_off_surface(v, seq, p, sensor.range_sigma, off_across);
+        if (p.spikes) mark_spikes_off_surface(v, seq, p, sensor.range_sigma, spike, spike_off);
       }
     }
   }
   for (std::size_t i = 0; i < n; ++i)
-    mixed[i] = is_mixed(along[i], smooth_across[i]) || is_mixed(across[i], smooth_along[i]) || (spike[i] && off_across[i]);
+    mixed[i] = is_mixed(along[i], smooth_across[i]) || is_mixed(across[i], smooth_along[i]) || spike_off[i];
   std::size_t count = 0;
   for (std::size_t i = 0; i < n; ++i)
     if (mixed[i]) {
