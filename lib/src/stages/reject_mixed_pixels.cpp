@@ -33,6 +33,10 @@ const OptionSchema& reject_mixed_pixels_schema() {
 namespace {
 /// The smallest range step that makes an edge at range r (jump_min, or jump_ratio of r if larger).
 double jump_at(const MixedPixelParams& p, double r) { return std::max(p.jump_min, p.jump_ratio * r); }
+/// How far from a surface a return at range r may lie and still be on it.
+double tolerance_at(const MixedPixelParams& p, double r, double range_sigma) {
+  return p.range_tolerance + p.range_tolerance_ratio * r + 3.0 * range_sigma;
+}
 
 struct Nb {
   int count = 0;  ///< up to 2 neighbours used for the tests
@@ -135,7 +139,7 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
     if (!v.usable[i] || mixed[i]) continue;
     const Nb l = neighbours(v, seq, pos, -1, p), r = neighbours(v, seq, pos, +1, p);
     const double ri = v.range[i];
-    const double tol = p.range_tolerance + p.range_tolerance_ratio * ri + 3.0 * range_sigma;
+    const double tol = tolerance_at(p, ri, range_sigma);
     // One-sided: beside a void (no return, or only rejected ones: the other surface was too weak
     // to return on its own, e.g. a dark box in front of the ground), the side the return has is
     // the only evidence. The side is the one with a return right next to this one or, if neither
@@ -225,7 +229,7 @@ void mark_smooth(const ReturnsView& v, const std::vector<std::size_t>& seq, cons
   for (std::size_t pos = 1; pos + 1 < seq.size(); ++pos) {
     const std::size_t a = seq[pos - 1], i = seq[pos], b = seq[pos + 1];
     if (!v.usable[i] || !v.usable[a] || !v.usable[b]) continue;
-    const double tol = p.range_tolerance + p.range_tolerance_ratio * v.range[i] + 3.0 * range_sigma;
+    const double tol = tolerance_at(p, v.range[i], range_sigma);
     // Curved surfaces (ground at grazing incidence) bend by a few per cent of the local step.
     const double allow = tol + 0.05 * std::fabs(v.range[b] - v.range[a]);
     if (std::fabs(v.range[i] - 0.5 * (v.range[a] + v.range[b])) > allow)
@@ -256,7 +260,7 @@ void mark_spikes_off_surface(const ReturnsView& v, const std::vector<std::size_t
   for (std::size_t pos = 0; pos < seq.size(); ++pos) {
     const std::size_t i = seq[pos];
     if (!spike[i]) continue;
-    const double tol = p.range_tolerance + p.range_tolerance_ratio * v.range[i] + 3.0 * range_sigma;
+    const double tol = tolerance_at(p, v.range[i], range_sigma);
     int seen = 0, off_it = 0;
     for (const std::size_t q : {pos - 1, pos + 1}) {  // pos - 1 wraps past the end at pos 0
       if (q >= seq.size() || !v.usable[seq[q]]) continue;
