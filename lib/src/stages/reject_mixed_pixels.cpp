@@ -137,9 +137,20 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
   for (std::size_t pos = 0; pos < seq.size(); ++pos) {
     const std::size_t i = seq[pos];
     if (!v.usable[i] || mixed[i]) continue;
-    const Nb l = neighbours(v, seq, pos, -1, p), r = neighbours(v, seq, pos, +1, p);
     const double ri = v.range[i];
     const double tol = tolerance_at(p, ri, range_sigma);
+    // Most returns lie inside a surface, with returns on both sides next to them (no void beside,
+    // so no one-sided test), and either close to each other (no edge across them) or with the
+    // return on the line through the two nearest on one side (on that side's trend, test 2).
+    // The tests below would reach the same verdict after searching the window on both sides.
+    if (pos > 0 && pos + 1 < seq.size() && v.usable[seq[pos - 1]] && v.usable[seq[pos + 1]]) {
+      const double ra = v.range[seq[pos - 1]], rb = v.range[seq[pos + 1]];
+      if (std::fabs(ra - rb) <= jump_at(p, std::min(ra, rb))) continue;
+      if (pos >= 2 && v.usable[seq[pos - 2]] && std::fabs(ri - (2 * ra - v.range[seq[pos - 2]])) <= tol) continue;
+      if (pos + 2 < seq.size() && v.usable[seq[pos + 2]] && std::fabs(ri - (2 * rb - v.range[seq[pos + 2]])) <= tol)
+        continue;
+    }
+    const Nb l = neighbours(v, seq, pos, -1, p), r = neighbours(v, seq, pos, +1, p);
     // One-sided: beside a void (no return, or only rejected ones: the other surface was too weak
     // to return on its own, e.g. a dark box in front of the ground), the side the return has is
     // the only evidence. The side is the one with a return right next to this one or, if neither
