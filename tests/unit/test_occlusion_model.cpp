@@ -145,7 +145,7 @@ TEST(OcclusionModel, AgreesWithTheRayTracedSimulator) {
 
 TEST(OcclusionModel, ProfileMinimumMatchesADenseScanOnRandomEdges) {
   // profile_minimum searches a coarse grid on [X1, X2] and refines; it must never miss the dip a
-  // dense scan (20000 cells) of [0, X2] finds (the reject stage's decision rests on it).
+  // dense scan (2000 cells) of [0, X2] finds (the reject stage's decision rests on it).
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   for (int k = 0; k < 2000; ++k) {
@@ -159,11 +159,45 @@ TEST(OcclusionModel, ProfileMinimumMatchesADenseScanOnRandomEdges) {
     e.theta = -3.14159 + 6.28318 * u(rng);
     const double hi = std::max(x2(e), 1e-12);
     double dense = amplitude_at(e, 0.0);
-    for (int i = 1; i <= 2000; ++i) dense = std::min(dense, amplitude_at(e, hi * i / 4000));
+    for (int i = 1; i <= 2000; ++i) dense = std::min(dense, amplitude_at(e, hi * i / 2000));
     const ProfileMinimum m = profile_minimum(e);
     EXPECT_LE(m.amplitude, dense + 1e-6 * std::max(1.0, dense)) << k;
     EXPECT_NEAR(m.amplitude, amplitude_at(e, m.x), 1e-12) << k;
     EXPECT_GE(m.x, 0.0);
     EXPECT_LE(m.x, hi * (1 + 1e-12));
   }
+}
+
+TEST(OcclusionModel, TheLowerBoundHoldsAndTheDipTestAgreesWithTheMinimum) {
+  // reject_occlusion asks only whether the profile dips below the detection limit. It answers
+  // from profile_lower_bound where that is above the limit, and stops the search at the first
+  // amplitude below it: the answer must be profile_minimum's, and the bound must hold on a
+  // dense scan of [0, X2], also for separations that hide the far target entirely (c >= 1).
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  int useful = 0, agreed = 0;
+  for (int k = 0; k < 2000; ++k) {
+    EdgeParams e;
+    e.d1 = 0.5 + 25.0 * u(rng);
+    e.d2 = e.d1 + 0.05 + 10.0 * u(rng);
+    e.p1 = 5.0 + 300.0 * u(rng);
+    e.p2 = 5.0 + 300.0 * u(rng);
+    e.alpha = 0.001 + 0.012 * u(rng);
+    e.separation = k % 4 == 0 ? 0.0 : 0.12 * u(rng) * u(rng);
+    e.theta = -3.14159 + 6.28318 * u(rng);
+    const double bound = profile_lower_bound(e);
+    const double hi = std::max(x2(e), 1e-12);
+    double dense = amplitude_at(e, 0.0);
+    for (int i = 1; i <= 2000; ++i) dense = std::min(dense, amplitude_at(e, hi * i / 2000));
+    EXPECT_GE(dense, bound - 1e-9 * std::max(1.0, bound)) << k;
+    EXPECT_LE(bound, std::min(e.p1, e.p2) + 1e-12) << k;
+    useful += bound > 0.5 * std::min(e.p1, e.p2);
+    const double m = profile_minimum(e).amplitude;
+    for (const double level : {m - 1e-6, m + 1e-6, 0.5 * m, 1.5 * m + 1.0, 18.0, bound + 1e-3}) {
+      EXPECT_EQ(profile_dips_below(e, level), m < level) << k << " level " << level;
+      ++agreed;
+    }
+  }
+  EXPECT_GT(useful, 600);  // a quarter of the edges have no separation: their bound is min(p1, p2)
+  EXPECT_EQ(agreed, 12000);
 }

@@ -63,6 +63,12 @@ struct ProfileMinimum {
 /// The minimum over x. By eqs. 17-18 it lies in [X1, 2 r1] (eq. 19 has no closed form): found by
 /// a grid and golden-section refinement.
 ProfileMinimum profile_minimum(const EdgeParams& e);
+/// A lower bound of the profile, from the separation alone: min(p1, p2) (2 - 2 F(1/2 + c/2)), F
+/// the disk fraction and c = X1 / (d1 alpha) clamped to [0, 1] (0 when the far target can be hidden).
+double profile_lower_bound(const EdgeParams& e);
+/// Whether the profile's minimum (as profile_minimum finds it) is below `level`: false at once
+/// where the lower bound is above it, and the search stops at the first amplitude below it.
+bool profile_dips_below(const EdgeParams& e, double level);
 
 /// The profile sampled at n points over [-0.2 X2, 1.2 X2] (for plots and CSV).
 std::vector<std::pair<double, double>> amplitude_profile(const EdgeParams& e, int n);

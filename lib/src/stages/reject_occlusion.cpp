@@ -97,7 +97,7 @@ class Sequencer {
     e.alpha = s_.beam_divergence;
     e.separation = std::max(0.0, s_.transceiver_separation * projected);
     e.theta = 0.0;
-    if (profile_minimum(e).amplitude < s_.min_amplitude) {
+    if (profile_dips_below(e, s_.min_amplitude)) {
       if (!j.dipping) {
         const std::size_t dl = pos - position_of(seq, pos, l.nearest, -1), dr = position_of(seq, pos, r.nearest, +1) - pos;
         j.repair_range = dl < dr ? l.range : dr < dl ? r.range : nr.range;
