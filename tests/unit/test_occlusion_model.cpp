@@ -14,6 +14,29 @@ using namespace pcdp;
 namespace {
 constexpr double kPi = 3.14159265358979323846;
 EdgeParams figure13() { return {5.8, 12.6, 115.0, 50.0, 0.003, 0.029, 0.0}; }
+
+/// An edge drawn over what scanners meet: 0.5-25.5 m, amplitudes 5-305, 1-13 mrad, separation
+/// up to 12 cm at any angle.
+EdgeParams random_edge(std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  EdgeParams e;
+  e.d1 = 0.5 + 25.0 * u(rng);
+  e.d2 = e.d1 + 0.05 + 10.0 * u(rng);
+  e.p1 = 5.0 + 300.0 * u(rng);
+  e.p2 = 5.0 + 300.0 * u(rng);
+  e.alpha = 0.001 + 0.012 * u(rng);
+  e.separation = 0.12 * u(rng);
+  e.theta = -3.14159 + 6.28318 * u(rng);
+  return e;
+}
+
+/// The profile's minimum on a dense scan (2000 cells) of [0, X2].
+double dense_minimum(const EdgeParams& e) {
+  const double hi = std::max(x2(e), 1e-12);
+  double dense = amplitude_at(e, 0.0);
+  for (int i = 1; i <= 2000; ++i) dense = std::min(dense, amplitude_at(e, hi * i / 2000));
+  return dense;
+}
 }  // namespace
 
 TEST(OcclusionModel, DiskFraction) {
@@ -147,19 +170,10 @@ TEST(OcclusionModel, ProfileMinimumMatchesADenseScanOnRandomEdges) {
   // profile_minimum searches a coarse grid on [X1, X2] and refines; it must never miss the dip a
   // dense scan (2000 cells) of [0, X2] finds (the reject stage's decision rests on it).
   std::mt19937 rng(11);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
   for (int k = 0; k < 2000; ++k) {
-    EdgeParams e;
-    e.d1 = 0.5 + 25.0 * u(rng);
-    e.d2 = e.d1 + 0.05 + 10.0 * u(rng);
-    e.p1 = 5.0 + 300.0 * u(rng);
-    e.p2 = 5.0 + 300.0 * u(rng);
-    e.alpha = 0.001 + 0.012 * u(rng);
-    e.separation = 0.12 * u(rng);
-    e.theta = -3.14159 + 6.28318 * u(rng);
+    const EdgeParams e = random_edge(rng);
     const double hi = std::max(x2(e), 1e-12);
-    double dense = amplitude_at(e, 0.0);
-    for (int i = 1; i <= 2000; ++i) dense = std::min(dense, amplitude_at(e, hi * i / 2000));
+    const double dense = dense_minimum(e);
     const ProfileMinimum m = profile_minimum(e);
     EXPECT_LE(m.amplitude, dense + 1e-6 * std::max(1.0, dense)) << k;
     EXPECT_NEAR(m.amplitude, amplitude_at(e, m.x), 1e-12) << k;
@@ -177,19 +191,10 @@ TEST(OcclusionModel, TheLowerBoundHoldsAndTheDipTestAgreesWithTheMinimum) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   int useful = 0, agreed = 0;
   for (int k = 0; k < 2000; ++k) {
-    EdgeParams e;
-    e.d1 = 0.5 + 25.0 * u(rng);
-    e.d2 = e.d1 + 0.05 + 10.0 * u(rng);
-    e.p1 = 5.0 + 300.0 * u(rng);
-    e.p2 = 5.0 + 300.0 * u(rng);
-    e.alpha = 0.001 + 0.012 * u(rng);
-    e.separation = k % 4 == 0 ? 0.0 : 0.12 * u(rng) * u(rng);
-    e.theta = -3.14159 + 6.28318 * u(rng);
+    EdgeParams e = random_edge(rng);
+    e.separation = k % 4 == 0 ? 0.0 : e.separation * u(rng);  // more small separations
     const double bound = profile_lower_bound(e);
-    const double hi = std::max(x2(e), 1e-12);
-    double dense = amplitude_at(e, 0.0);
-    for (int i = 1; i <= 2000; ++i) dense = std::min(dense, amplitude_at(e, hi * i / 2000));
-    EXPECT_GE(dense, bound - 1e-9 * std::max(1.0, bound)) << k;
+    EXPECT_GE(dense_minimum(e), bound - 1e-9 * std::max(1.0, bound)) << k;
     EXPECT_LE(bound, std::min(e.p1, e.p2) + 1e-12) << k;
     useful += bound > 0.5 * std::min(e.p1, e.p2);
     const double m = profile_minimum(e).amplitude;
