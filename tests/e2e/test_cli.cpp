@@ -529,13 +529,21 @@ TEST(FullChain, ConsistencyRaisesRecallWithinTheFalseRejectionBudget) {
   test::write_text(without, fixed);
   const auto with_c = run_and_evaluate({}, yaml, dir + "/with");
   const auto without_c = run_and_evaluate({}, without, dir + "/without");
-  const double mixed_with = with_c["labels"]["mixed_pixel"]["recall"], mixed_without = without_c["labels"]["mixed_pixel"]["recall"];
-  const double low_with = with_c["labels"]["low_amplitude"]["recall"], low_without = without_c["labels"]["low_amplitude"]["recall"];
-  std::cout << "mixed-pixel recall " << mixed_without << " -> " << mixed_with << ", low-amplitude " << low_without << " -> "
-            << low_with << ", valid rejected " << without_c["valid"]["false_rejection"] << " -> "
-            << with_c["valid"]["false_rejection"] << "\n";
-  EXPECT_GT(mixed_with, mixed_without);
-  EXPECT_GE(low_with, low_without);
+  // Rays from the other passes see through veils and false ranges: every bad label keeps at
+  // least its recall, and more bad returns are rejected in all. (Which label gains depends on
+  // what the single-pass filters leave: since reject_mixed_pixels takes spikes up to three
+  // returns wide it finds on the sample every mixed pixel check_consistency used to add.)
+  std::size_t bad_with = 0, bad_without = 0;
+  for (const char* label : {"mixed_pixel", "low_amplitude", "occlusion"}) {
+    const double r_with = with_c["labels"][label]["recall"], r_without = without_c["labels"][label]["recall"];
+    std::cout << label << " recall " << r_without << " -> " << r_with << "\n";
+    EXPECT_GE(r_with, r_without) << label;
+    bad_with += with_c["labels"][label]["rejected"].get<std::size_t>();
+    bad_without += without_c["labels"][label]["rejected"].get<std::size_t>();
+  }
+  std::cout << "bad returns rejected " << bad_without << " -> " << bad_with << ", valid rejected "
+            << without_c["valid"]["false_rejection"] << " -> " << with_c["valid"]["false_rejection"] << "\n";
+  EXPECT_GT(bad_with, bad_without);
   EXPECT_LE(with_c["valid"]["false_rejection"].get<double>(), 0.01);
 }
 

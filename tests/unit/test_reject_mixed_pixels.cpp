@@ -186,6 +186,67 @@ TEST(RejectMixedPixels, AOneBeamSpikeWhoseRangeChangesAcrossLinesIsAMixtureWithA
   EXPECT_EQ(flagged(grid_pass(lines({6.0f, 6.0f, 6.0f, 10.0f, 10.0f, 10.0f})), true), std::vector<bool>(6, false));
 }
 
+TEST(RejectMixedPixels, ASpikeUpToSpikeWidthReturnsWideIsTestedLikeAOneBeamSpike) {
+  // A wall at 10 m; from beam 10, a run of `width` returns in front of it in every line: a post
+  // one to three beams wide, or the post with the mixtures on its sides. Each return of the run
+  // has its own range, varying from line to line (a mixture) or not (the post itself).
+  const auto pass = [](std::size_t width, const std::vector<float>& front, float step) {
+    std::vector<std::vector<float>> rows;
+    for (float c : front) {
+      std::vector<float> row(24, 10.0f);
+      for (std::size_t q = 0; q < width; ++q) row[10 + q] = c + step * static_cast<float>(q);
+      rows.push_back(row);
+    }
+    return grid_pass(rows);
+  };
+  // Which returns of the run the stage flags, in the first and last line (where the across-line
+  // edge tests have one side only, so only the spike test can find them) and in all lines.
+  struct Count {
+    std::size_t ends = 0, all = 0, outside = 0;
+  };
+  const auto flagged = [](Pass p, std::size_t width, int spike_width) {
+    MixedPixelParams mp;
+    mp.spike_width = spike_width;
+    reject_mixed_pixels(p, mp, coaxial_sensor());
+    Count c;
+    for (std::size_t k = 0; k < p.line_count(); ++k)
+      for (std::size_t b = 0; b < p.line_begin[k + 1] - p.line_begin[k]; ++b) {
+        const bool f = p.label[p.line_begin[k] + b] == Label::kMixedPixel;
+        if (b < 10 || b >= 10 + width) {
+          c.outside += f;
+          continue;
+        }
+        c.all += f;
+        c.ends += f && (k == 0 || k + 1 == p.line_count());
+      }
+    return c;
+  };
+  const std::vector<float> mixture{8.0f, 8.6f, 9.2f, 8.3f, 7.7f, 8.9f};
+  for (std::size_t width = 1; width <= 4; ++width) {
+    // Mixtures: every return of a run up to spike_width (3) wide, the end lines too; nothing beside it.
+    const Count wide = flagged(pass(width, mixture, 0.02f), width, 3);
+    EXPECT_EQ(wide.outside, 0u) << "width " << width;
+    if (width <= 3) {
+      EXPECT_EQ(wide.all, 6 * width) << "width " << width;
+    } else {  // a run wider than spike_width: the end lines are not flagged
+      EXPECT_EQ(wide.ends, 0u) << "width " << width;
+    }
+    // With spike_width 1 only one-beam runs are spikes.
+    EXPECT_EQ(flagged(pass(width, mixture, 0.02f), width, 1).ends, width == 1 ? 2u : 0u) << "width " << width;
+    // A post keeps its range from line to line: nothing flagged, whatever its width.
+    EXPECT_EQ(flagged(pass(width, std::vector<float>(6, 6.0f), 0.0f), width, 3).all, 0u) << "width " << width;
+  }
+  // The run must stand in front of both flanks by an edge jump: a step down to a nearer surface
+  // (the wall goes on at 6 m after the run) is not a spike.
+  std::vector<std::vector<float>> rows;
+  for (float c : mixture) {
+    std::vector<float> row(24, 10.0f);
+    for (std::size_t b = 10; b < 24; ++b) row[b] = b < 12 ? c : 6.0f;
+    rows.push_back(row);
+  }
+  EXPECT_EQ(flagged(grid_pass(rows), 0, 3).outside - flagged(grid_pass(rows), 0, 1).outside, 0u);
+}
+
 TEST(RejectMixedPixels, GrazingGroundIsKept) {
   // Flat ground only, scanned near the horizon: ranges grow fast but smoothly across lines.
   sim::SimConfig c;
@@ -211,10 +272,11 @@ TEST(RejectMixedPixels, GrazingGroundIsKept) {
 }
 
 TEST(RejectMixedPixels, OnSimulatedScenesOfTwoSensorSettings) {
-  // The same seeds as bench/pcdp_mixed_bench (which adds the baselines). Measured: A 0.901
-  // (630/699), B 0.958 (249/260; 0.923 before the spike test), both at the target of
-  // 0.90; A is held at 0.895 here because 0.90 would be one return away, B at 0.94 so that losing
-  // the spike test fails (docs/mixed_pixels.md: seeds 4-9 too).
+  // The same seeds as bench/pcdp_mixed_bench (which adds the baselines). Measured: A 0.908
+  // (635/699; 0.901 with spike_width 1), B 0.958 (249/260; 0.923 before the spike test), both
+  // above the target of 0.90. A is held at 0.905 so that losing the spikes two and three
+  // returns wide fails, B at 0.94 so that losing the spike test fails (docs/mixed_pixels.md:
+  // more seeds).
   for (char which : {'A', 'B'}) {
     std::uint64_t pos = 0, tp = 0, valid = 0, fp = 0;
     for (std::uint64_t seed = 1; seed <= 3; ++seed) {
@@ -245,7 +307,7 @@ TEST(RejectMixedPixels, OnSimulatedScenesOfTwoSensorSettings) {
     const double false_rate = static_cast<double>(fp) / static_cast<double>(valid);
     std::cout << which << ": recall " << recall << " (" << tp << "/" << pos << "), valid rejected " << 100 * false_rate << " %\n";
     EXPECT_LE(false_rate, 0.01) << which;
-    EXPECT_GE(recall, which == 'B' ? 0.94 : 0.895) << which;
+    EXPECT_GE(recall, which == 'B' ? 0.94 : 0.905) << which;
   }
 }
 

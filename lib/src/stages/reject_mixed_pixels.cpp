@@ -25,7 +25,8 @@ const OptionSchema& reject_mixed_pixels_schema() {
       opt_int("max_span", 6, 2.0, 100.0, "returns", "the two sides' nearest neighbours may be at most this many steps apart"),
       opt_double("amplitude_saturation", 255.0, 0.0, 1e9, "", "amplitudes at or above this are clipped: the mixing test is skipped"),
       opt_bool("one_sided", true, "beside a void, flag returns that break sharply from their one visible surface"),
-      opt_bool("spikes", true, "flag a return one beam wide in front of the surface on both sides along its line whose range changes across lines (a mixture with a thin object)"),
+      opt_bool("spikes", true, "flag a run of returns a few beams wide in front of the surface on both sides along its line whose range changes across lines (a mixture with a thin object)"),
+      opt_int("spike_width", 3, 1.0, 16.0, "returns", "widest run along a line the spike test takes for a thin object (or a mixture with one)"),
   };
   return s;
 }
@@ -250,17 +251,30 @@ void mark_smooth(const ReturnsView& v, const std::vector<std::size_t>& seq, cons
   }
 }
 
-/// Spikes along a sequence: the return is nearer than both immediate neighbours by more than an
-/// edge jump, and they agree with each other (one surface behind it). Something one return wide
-/// stands in front: a thin object, or a mixture of one with the surface behind.
+/// Spikes along a sequence: a run of 1 to spike_width returns, each nearer than both returns
+/// flanking the run by more than an edge jump, and the two flanks agree with each other (one
+/// surface behind it). Something a few returns wide stands in front: a thin object, or a mixture
+/// of one with the surface behind. A post spans width / (range x beam spacing) returns: a 15 cm
+/// post at 10 m is about one return of a 1 deg scan (one or two, as it falls against the beams),
+/// and with the mixtures on its sides (a footprint of 5-8 mrad on 10-17 mrad spacing) up to three.
 void mark_spikes(const ReturnsView& v, const std::vector<std::size_t>& seq, const MixedPixelParams& p,
                  std::vector<char>& spike) {
   for (std::size_t pos = 1; pos + 1 < seq.size(); ++pos) {
-    const std::size_t a = seq[pos - 1], i = seq[pos], b = seq[pos + 1];
-    if (!v.usable[i] || !v.usable[a] || !v.usable[b]) continue;
-    const double ri = v.range[i], ra = v.range[a], rb = v.range[b];
-    const double jump = jump_at(p, ri);
-    spike[i] = ra > ri + jump && rb > ri + jump && std::fabs(ra - rb) <= jump_at(p, std::min(ra, rb));
+    const std::size_t a = seq[pos - 1];
+    if (!v.usable[a]) continue;
+    const double ra = v.range[a];
+    double farthest = 0;  // of the run seq[pos .. pos + w - 1]
+    for (std::size_t w = 1; w <= static_cast<std::size_t>(p.spike_width) && pos + w < seq.size(); ++w) {
+      const std::size_t last = seq[pos + w - 1], b = seq[pos + w];
+      if (!v.usable[last]) break;
+      farthest = std::max(farthest, static_cast<double>(v.range[last]));
+      const double jump = jump_at(p, farthest);
+      if (ra <= farthest + jump) break;  // the run no longer stands in front of the left flank
+      if (!v.usable[b]) continue;  // the next one cannot flank the run (nor extend it: break next)
+      const double rb = v.range[b];
+      if (rb > farthest + jump && std::fabs(ra - rb) <= jump_at(p, std::min(ra, rb)))
+        for (std::size_t q = 0; q < w; ++q) spike[seq[pos + q]] = 1;
+    }
   }
 }
 
@@ -450,6 +464,7 @@ StageInfo reject_mixed_pixels_stage_info() {
             p.amplitude_saturation = o.get_double("amplitude_saturation");
             p.one_sided = o.get_bool("one_sided");
             p.spikes = o.get_bool("spikes");
+            p.spike_width = static_cast<int>(o.get_int("spike_width"));
             return std::make_unique<RejectMixedPixelsStage>(p, ctx);
           }};
 }

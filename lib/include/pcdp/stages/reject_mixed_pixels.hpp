@@ -30,14 +30,16 @@
 // three adjacent returns of one smooth surface, allowing a quarter step; else linear, half a step)
 // by more than the tolerance and the edge jump, does not continue the surface beyond the void,
 // and has the beam geometry of 3. The end of a scan is not a void (ReturnsView::ends_are_voids).
-// Spikes (`spikes`, organized passes with across_lines): a return one beam wide, nearer by more
-// than an edge jump than both its neighbours along the line, which agree with each other (one
-// surface behind it), is a thin object or a mixture of one with the surface behind. A thin object
-// (a post) keeps its range from line to line, and the top return of a post has the post below
-// it; a mixture's range follows the share of the footprint on the object, which changes as the
-// scan moves. So a spike is a mixed pixel where it differs by more than the tolerance from each
-// neighbour it has across lines (one is enough: at a sweep's end there is one). Not used on
-// unorganized clouds, whose range-image bands interleave neighbouring lines.
+// Spikes (`spikes`, organized passes with across_lines): a run of 1 to spike_width returns, each
+// nearer by more than an edge jump than both returns flanking the run along the line, which agree
+// with each other (one surface behind it), is a thin object or a mixture of one with the surface
+// behind (a 15 cm post at 10 m is one or two returns of a 1 deg scan; with the mixtures on its
+// sides, up to three). A thin object (a post) keeps its range from line to line, and the top
+// return of a post has the post below it; a mixture's range follows the share of the footprint on
+// the object, which changes as the scan moves. So a return of a spike is a mixed pixel where it
+// differs by more than the tolerance from each neighbour it has across lines (one is enough: at a
+// sweep's end there is one). Not used on unorganized clouds, whose range-image bands interleave
+// neighbouring lines.
 // Across lines, each nod sweep is a sequence of its own (lines fold back where the nod reverses).
 // Amplitudes at or above amplitude_saturation (clipped) skip test 4.
 // Only the return itself is labelled `mixed_pixel`, never a window of neighbours.
@@ -68,7 +70,8 @@ struct MixedPixelParams {
   bool across_lines = true;
   double amplitude_saturation = 255.0;  ///< clipped amplitudes say nothing about the mixture
   bool one_sided = true;
-  bool spikes = true;                ///< one-beam spikes in front of a surface, off their neighbours across lines
+  bool spikes = true;                ///< spikes in front of a surface, off their neighbours across lines
+  int spike_width = 3;               ///< returns: the widest run along a line taken for a spike
   int max_span = 6;                  ///< steps between the two sides' nearest neighbours
 };
 
