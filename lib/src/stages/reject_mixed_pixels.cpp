@@ -270,7 +270,7 @@ void mark_spikes(const ReturnsView& v, const std::vector<std::size_t>& seq, cons
       farthest = std::max(farthest, static_cast<double>(v.range[last]));
       const double jump = jump_at(p, farthest);
       if (ra <= farthest + jump) break;  // the run no longer stands in front of the left flank
-      if (!v.usable[b]) continue;  // the next one cannot flank the run (nor extend it: break next)
+      if (!v.usable[b]) break;  // it can neither flank the run nor extend it
       const double rb = v.range[b];
       if (rb > farthest + jump && std::fabs(ra - rb) <= jump_at(p, std::min(ra, rb)))
         for (std::size_t q = 0; q < w; ++q) spike[seq[pos + q]] = 1;
