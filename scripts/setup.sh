@@ -10,7 +10,7 @@ PACKAGES=(
   cmake ninja-build g++ pkg-config
   libeigen3-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  libpcl-dev libgdal-dev gdal-bin liboctomap-dev libpng-dev
+  libpcl-dev libgdal-dev gdal-bin liboctomap-dev libpng-dev libdeflate-dev
 )
 
 missing=()

@@ -237,7 +237,8 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   // write their products at the same time, and the parts of a stage that writes several (see
   // Stage::finish_parts); errors are reported in stage order. Closing returns.pcd and cloud.pcd
   // (each copies its body behind the header) are two more parts, last: on 2 threads they run
-  // beside elevation.tif, the longest part, instead of after it.
+  // beside elevation.tif, the longest part, instead of after it. A part may hand tasks to the
+  // WorkShare (elevation.tif compresses one band per task): a thread with no part left helps.
   LockedSink sink(out);
   std::vector<std::pair<std::size_t, std::size_t>> parts;  // (stage, part); stage == size: a writer
   for (std::size_t s = 0; s < stages_.size(); ++s)
@@ -246,7 +247,7 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   parts.emplace_back(stages_.size(), 1);
   detail::ordered_parallel<StageReport>(
       parts.size(), sum.threads, parts.size(),
-      [&](std::size_t t) {
+      [&](std::size_t t, WorkShare& share) {
         StageReport rep;
         const auto [s, p] = parts[t];
         if (s == stages_.size()) {
@@ -255,7 +256,7 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
           return rep;
         }
         const auto t0 = std::chrono::steady_clock::now();
-        stages_[s]->finish_part(p, sink, rep);
+        stages_[s]->finish_part(p, sink, rep, share);
         const double dt = seconds_since(t0);
         rep.seconds += dt;
         if (dt > 1e-4) rep.metrics["finish_seconds"] += dt;  // products written at the end

@@ -79,9 +79,12 @@ class Stage {
   /// Stages whose products can be written independently split finish() into parts; with
   /// threads, the pipeline runs the parts of every stage at once, each with its own report,
   /// merged in order. Parts of one stage may run concurrently: they must not change shared
-  /// state. By default one part, finish() itself.
+  /// state. A part may divide its work into tasks for `share` (threads with no part left run
+  /// some of them). By default one part, finish() itself.
   virtual std::size_t finish_parts() const { return 1; }
-  virtual void finish_part(std::size_t /*part*/, OutputSink& sink, StageReport& report) { finish(sink, report); }
+  virtual void finish_part(std::size_t /*part*/, OutputSink& sink, StageReport& report, WorkShare& /*share*/) {
+    finish(sink, report);
+  }
   /// Stages that need evidence from every pass before labelling any (check_consistency) return
   /// true; the pipeline then first streams every pass through the stages before them and hands it
   /// to prepass(), then runs the whole chain as usual.

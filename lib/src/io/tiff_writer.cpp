@@ -1,0 +1,214 @@
+#include "tiff_writer.hpp"
+
+#include <libdeflate.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <memory>
+#include <stdexcept>
+
+namespace pcdp::io::detail {
+
+namespace {
+// TIFF 6.0 field types, and BigTIFF's 8-byte one.
+constexpr std::uint16_t kAscii = 2, kShort = 3, kLong = 4, kDouble = 12, kLong8 = 16;
+
+// Little-endian bytes, whatever the host.
+void put(std::vector<std::uint8_t>& b, std::uint64_t v, int bytes) {
+  for (int i = 0; i < bytes; ++i) b.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
+}
+void put_double(std::vector<std::uint8_t>& b, double d) {
+  std::uint64_t u;
+  static_assert(sizeof u == sizeof d, "IEEE double");
+  std::memcpy(&u, &d, sizeof u);
+  put(b, u, 8);
+}
+
+// One image file directory. Values that fit in the entry's value field sit there; the others go
+// to `ext`, which follows the directory in the file at `ext_base`.
+class Ifd {
+ public:
+  Ifd(bool big, std::uint64_t ext_base) : big_(big), ext_base_(ext_base) {}
+  void add(std::uint16_t tag, std::uint16_t type, std::uint64_t count, const std::vector<std::uint8_t>& value) {
+    put(dir_, tag, 2);
+    put(dir_, type, 2);
+    put(dir_, count, big_ ? 8 : 4);
+    const std::size_t field = big_ ? 8 : 4;
+    if (value.size() <= field) {
+      dir_.insert(dir_.end(), value.begin(), value.end());
+      for (std::size_t i = value.size(); i < field; ++i) dir_.push_back(0);
+    } else {
+      while (ext_.size() % 8) ext_.push_back(0);  // word-aligned values (TIFF 6.0 asks for even offsets)
+      put(dir_, ext_base_ + ext_.size(), static_cast<int>(field));
+      ext_.insert(ext_.end(), value.begin(), value.end());
+    }
+    ++entries_;
+  }
+  void ints(std::uint16_t tag, std::uint16_t type, const std::vector<std::uint64_t>& v) {
+    const int bytes = type == kShort ? 2 : type == kLong ? 4 : 8;
+    std::vector<std::uint8_t> b;
+    for (std::uint64_t x : v) put(b, x, bytes);
+    add(tag, type, v.size(), b);
+  }
+  void doubles(std::uint16_t tag, const double* v, std::size_t n) {
+    std::vector<std::uint8_t> b;
+    for (std::size_t i = 0; i < n; ++i) put_double(b, v[i]);
+    add(tag, kDouble, n, b);
+  }
+  void ascii(std::uint16_t tag, const std::string& s) {
+    std::vector<std::uint8_t> b(s.begin(), s.end());
+    b.push_back(0);
+    add(tag, kAscii, b.size(), b);
+  }
+  /// The directory (entry count, entries, no next directory) followed by the values outside it.
+  std::vector<std::uint8_t> bytes() const {
+    std::vector<std::uint8_t> b;
+    put(b, entries_, big_ ? 8 : 2);
+    b.insert(b.end(), dir_.begin(), dir_.end());
+    put(b, 0, big_ ? 8 : 4);
+    b.insert(b.end(), ext_.begin(), ext_.end());
+    return b;
+  }
+  /// Bytes of the directory itself for `entries` entries: where the values after it start.
+  std::uint64_t entries() const { return entries_; }
+  static std::uint64_t size(bool big, std::uint64_t entries) {
+    return big ? 8 + 20 * entries + 8 : 2 + 12 * entries + 4;
+  }
+
+ private:
+  bool big_;
+  std::uint64_t ext_base_;
+  std::uint64_t entries_ = 0;
+  std::vector<std::uint8_t> dir_, ext_;
+};
+
+struct CompressorFree {
+  void operator()(libdeflate_compressor* c) const { libdeflate_free_compressor(c); }
+};
+}  // namespace
+
+namespace {
+std::string xml_escape(const std::string& s) {
+  std::string o;
+  for (char c : s) {
+    switch (c) {
+      case '&': o += "&amp;"; break;
+      case '<': o += "&lt;"; break;
+      case '>': o += "&gt;"; break;
+      case '"': o += "&quot;"; break;
+      default: o += c;
+    }
+  }
+  return o;
+}
+
+}  // namespace
+
+std::string gdal_metadata(const std::vector<std::pair<std::string, std::string>>& items,
+                          const std::vector<std::string>& band_descriptions) {
+  std::string xml = "<GDALMetadata>\n";
+  for (const auto& [name, value] : items)
+    xml += "  <Item name=\"" + xml_escape(name) + "\">" + xml_escape(xml_escape(value)) + "</Item>\n";
+  for (std::size_t b = 0; b < band_descriptions.size(); ++b)
+    if (!band_descriptions[b].empty())
+      xml += "  <Item name=\"DESCRIPTION\" sample=\"" + std::to_string(b) + "\" role=\"description\">" +
+             xml_escape(xml_escape(band_descriptions[b])) + "</Item>\n";
+  return xml + "</GDALMetadata>\n";
+}
+
+void write_float_tiff(const std::string& path, const FloatTiff& t, int level, const PlaneFill& fill,
+                      WorkShare& share) {
+  if (t.width < 1 || t.height < 1 || t.bands < 1 || t.rows_per_strip < 1)
+    throw std::invalid_argument(path + ": a TIFF needs at least one row, column, band and row per strip");
+  const std::size_t w = static_cast<std::size_t>(t.width), h = static_cast<std::size_t>(t.height);
+  const std::size_t rps = static_cast<std::size_t>(t.rows_per_strip);
+  const std::size_t strips = (h + rps - 1) / rps;
+  const std::size_t nb = static_cast<std::size_t>(t.bands);
+  // Compressed strips, band after band (PlanarConfiguration 2 orders them so).
+  std::vector<std::vector<std::uint8_t>> out(nb * strips);
+  share.run(nb, [&](std::size_t b) {
+    std::unique_ptr<libdeflate_compressor, CompressorFree> c(libdeflate_alloc_compressor(level));
+    if (!c) throw std::runtime_error(path + ": cannot set up DEFLATE at level " + std::to_string(level));
+    std::vector<float> plane(w * h);
+    fill(static_cast<int>(b), plane);
+    for (std::size_t s = 0; s < strips; ++s) {
+      const std::size_t rows = std::min(rps, h - s * rps);
+      const std::size_t in = rows * w * sizeof(float);
+      std::vector<std::uint8_t>& z = out[b * strips + s];
+      z.resize(libdeflate_zlib_compress_bound(c.get(), in));
+      // TIFF stores little-endian floats in an "II" file: the plane's own bytes on this host.
+      static_assert(std::numeric_limits<float>::is_iec559, "IEEE float");
+      const std::size_t n = libdeflate_zlib_compress(c.get(), plane.data() + s * rps * w, in, z.data(), z.size());
+      if (n == 0) throw std::runtime_error(path + ": DEFLATE failed");
+      z.resize(n);
+      z.shrink_to_fit();
+    }
+  });
+
+  std::uint64_t data_bytes = 0;
+  for (const auto& z : out) data_bytes += z.size();
+  // Past 4 GiB of offsets a classic TIFF cannot point: BigTIFF then (GDAL's BIGTIFF=IF_NEEDED).
+  const bool big = t.bigtiff || data_bytes + (std::uint64_t{1} << 24) > std::numeric_limits<std::uint32_t>::max();
+  const std::uint64_t header = big ? 16 : 8;
+  const std::uint64_t ifd_at = (header + data_bytes + 7) / 8 * 8;
+  const std::uint64_t entries = 14 + (nb > 1) + !t.gdal_metadata.empty() + !t.gdal_nodata.empty();
+  Ifd ifd(big, ifd_at + Ifd::size(big, entries));
+  const std::uint16_t off_type = big ? kLong8 : kLong;
+  std::vector<std::uint64_t> offsets, counts;
+  std::uint64_t at = header;
+  for (const auto& z : out) {
+    offsets.push_back(at);
+    counts.push_back(z.size());
+    at += z.size();
+  }
+  // Entries in ascending tag order.
+  ifd.ints(256, kLong, {w});                                // ImageWidth
+  ifd.ints(257, kLong, {h});                                // ImageLength
+  ifd.ints(258, kShort, std::vector<std::uint64_t>(nb, 32));  // BitsPerSample
+  ifd.ints(259, kShort, {8});                               // Compression: Deflate (zlib stream)
+  ifd.ints(262, kShort, {1});                               // PhotometricInterpretation: BlackIsZero
+  ifd.ints(273, off_type, offsets);                         // StripOffsets
+  ifd.ints(277, kShort, {nb});                              // SamplesPerPixel
+  ifd.ints(278, kLong, {rps});                              // RowsPerStrip
+  ifd.ints(279, off_type, counts);                          // StripByteCounts
+  ifd.ints(284, kShort, {2});                               // PlanarConfiguration: separate planes
+  ifd.ints(317, kShort, {1});                               // Predictor: none
+  if (nb > 1) ifd.ints(338, kShort, std::vector<std::uint64_t>(nb - 1, 0));  // ExtraSamples: unspecified
+  ifd.ints(339, kShort, std::vector<std::uint64_t>(nb, 3));  // SampleFormat: IEEE float
+  ifd.doubles(33550, t.pixel_scale, 3);
+  ifd.doubles(33922, t.tiepoint, 6);
+  if (!t.gdal_metadata.empty()) ifd.ascii(42112, t.gdal_metadata);
+  if (!t.gdal_nodata.empty()) ifd.ascii(42113, t.gdal_nodata);
+
+  if (ifd.entries() != entries) throw std::logic_error("write_float_tiff: the directory's entry count is off");
+  std::vector<std::uint8_t> head;
+  head.push_back('I');
+  head.push_back('I');
+  if (big) {
+    put(head, 43, 2);
+    put(head, 8, 2);  // bytes per offset
+    put(head, 0, 2);
+    put(head, ifd_at, 8);
+  } else {
+    put(head, 42, 2);
+    put(head, ifd_at, 4);
+  }
+  const std::vector<std::uint8_t> tail = ifd.bytes();
+  std::FILE* f = std::fopen(path.c_str(), "wb");
+  if (!f) throw std::runtime_error(path + ": cannot create");
+  bool ok = std::fwrite(head.data(), 1, head.size(), f) == head.size();
+  for (const auto& z : out) ok = ok && std::fwrite(z.data(), 1, z.size(), f) == z.size();
+  static const std::uint8_t zeros[8] = {};
+  const std::size_t pad = static_cast<std::size_t>(ifd_at - header - data_bytes);
+  ok = ok && std::fwrite(zeros, 1, pad, f) == pad;
+  ok = ok && std::fwrite(tail.data(), 1, tail.size(), f) == tail.size();
+  ok = std::fclose(f) == 0 && ok;
+  if (!ok) {
+    std::remove(path.c_str());
+    throw std::runtime_error(path + ": cannot write (disk full?)");
+  }
+}
+
+}  // namespace pcdp::io::detail
