@@ -14,6 +14,8 @@
 #include <set>
 #include <tuple>
 
+#include "pcdp/elevation.hpp"
+#include "pcdp/io/geotiff.hpp"
 #include "pcdp/io/import_3dtk.hpp"
 #include "pcdp/labels.hpp"
 #include "pcdp/io/pcd.hpp"
@@ -919,4 +921,69 @@ TEST(Cli, ImportOfCartesianScansNamesBadOptionsAndFiles) {
   EXPECT_NE(r.out.find("imported 1 scan(s), 41049 returns"), std::string::npos) << r.out;
   EXPECT_TRUE(std::filesystem::exists(dir + "/c/pass_000.pcd"));
   EXPECT_TRUE(std::filesystem::exists(dir + "/c/poses.csv"));
+}
+
+TEST(Cli, MergeOfDisjointPassesIsTheGridOfAllAndTheSameFileOnAnyThreads) {
+  // The sample's passes 0-1 and 2-3 fused apart, merged with `merge`, against all four fused at
+  // once (the merge is exact; the files hold float32). The merged file is the same bytes with
+  // one thread and two.
+  // The main pipeline without check_consistency: that stage labels each pass with the evidence
+  // of the others in the same run, so passes fused in separate runs keep other returns.
+  const std::string dir = test::fresh_dir("merge");
+  const std::string scans = std::string(PCDP_SOURCE_DIR) + "/sample_scans/";
+  std::string text = test::read_text(std::string(PCDP_SOURCE_DIR) + "/pipelines/nodding_terrain.yaml");
+  const std::string consistency = "  - type: check_consistency\n";
+  ASSERT_NE(text.find(consistency), std::string::npos);
+  text.erase(text.find(consistency), consistency.size());
+  const std::string yaml = dir + "/pipeline.yaml";
+  test::write_text(yaml, text);
+  const auto run = [&](const std::string& glob, const std::string& out, std::vector<std::string> more = {}) {
+    std::vector<std::string> args = {"run", yaml, "--quiet", "--set", "input.scans=" + scans + glob, "--set",
+                                      "input.poses=" + scans + "poses.csv", "--output-dir", out};
+    args.insert(args.end(), more.begin(), more.end());
+    return run_cli(args);
+  };
+  for (const auto& [name, glob] : {std::pair<std::string, std::string>{"a", "pass_00[01].pcd"}, {"b", "pass_00[23].pcd"},
+                                   {"all", "pass_*.pcd"}}) {
+    const auto res = run(glob, dir + "/" + name);
+    ASSERT_EQ(res.exit_code, 0) << res.err;
+  }
+  const auto m1 = run_cli({"merge", dir + "/a/elevation.tif", dir + "/b/elevation.tif", "-o", dir + "/m1.tif", "-j", "1"});
+  ASSERT_EQ(m1.exit_code, 0) << m1.err;
+  const auto m2 = run_cli({"merge", dir + "/b/elevation.tif", dir + "/a/elevation.tif", "-o", dir + "/m2.tif", "-j", "2",
+                           "--png", dir + "/m2.png"});
+  ASSERT_EQ(m2.exit_code, 0) << m2.err;
+  EXPECT_NE(m2.out.find("merged 2 grids"), std::string::npos) << m2.out;
+  EXPECT_EQ(test::read_text(dir + "/m1.tif"), test::read_text(dir + "/m2.tif"));  // any order, any threads
+  EXPECT_TRUE(fs::file_size(dir + "/m2.png") > 0);
+  const ElevationGrid merged = io::read_elevation_geotiff(dir + "/m1.tif");
+  const ElevationGrid all = io::read_elevation_geotiff(dir + "/all/elevation.tif");
+  const ElevationGrid a = io::read_elevation_geotiff(dir + "/a/elevation.tif");
+  EXPECT_EQ(merged.size(), all.size());
+  EXPECT_GT(merged.size(), a.size());  // b added cells a did not see
+  std::size_t compared = 0;
+  all.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
+    const ElevationCell* m = merged.find(ix, iy);
+    ASSERT_NE(m, nullptr) << ix << " " << iy;
+    EXPECT_EQ(m->count, c.count);
+    EXPECT_EQ(m->passes, c.passes);
+    double e1 = 0, v1 = 0, e2 = 0, v2 = 0;
+    const bool f1 = all.surface(c, e1, v1), f2 = merged.surface(*m, e2, v2);
+    ASSERT_EQ(f1, f2);
+    if (f1) {
+      EXPECT_NEAR(e1, e2, 1e-4);
+    }
+    ++compared;
+  });
+  EXPECT_EQ(compared, all.size());
+  // Grids of different resolutions do not merge; one grid is not a merge. Nothing is written.
+  const auto coarse = run("pass_000.pcd", dir + "/coarse", {"--set", "stages.fuse_elevation.resolution=0.2"});
+  ASSERT_EQ(coarse.exit_code, 0) << coarse.err;
+  const auto bad = run_cli({"merge", dir + "/a/elevation.tif", dir + "/coarse/elevation.tif", "-o", dir + "/bad.tif"});
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find("coarse/elevation.tif: resolution 0.2 m"), std::string::npos) << bad.err;
+  EXPECT_FALSE(fs::exists(dir + "/bad.tif"));
+  const auto one = run_cli({"merge", dir + "/a/elevation.tif", "-o", dir + "/one.tif"});
+  EXPECT_NE(one.exit_code, 0);
+  EXPECT_NE(one.err.find("two or more"), std::string::npos) << one.err;
 }

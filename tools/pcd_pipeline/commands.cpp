@@ -11,6 +11,7 @@
 #include <sstream>
 #include <thread>
 
+#include "pcdp/work_share.hpp"
 #include "pcdp/config.hpp"
 #include "pcdp/errors.hpp"
 #include "pcdp/pipeline.hpp"
@@ -414,7 +415,7 @@ int cmd_error_budget(const RunArgs& a, const std::string& svg, const std::string
   return 0;
 }
 
-int cmd_merge(const std::vector<std::string>& inputs, const std::string& output, const std::string& png) {
+int cmd_merge(const std::vector<std::string>& inputs, const std::string& output, const std::string& png, unsigned threads) {
   if (inputs.size() < 2) throw ConfigError("merge: give two or more elevation grids to merge");
   ElevationGrid grid = io::read_elevation_geotiff(inputs[0]);
   for (std::size_t k = 1; k < inputs.size(); ++k) {
@@ -426,7 +427,9 @@ int cmd_merge(const std::vector<std::string>& inputs, const std::string& output,
                        " m, " + format_value(grid.band()) + " m); grids merge only on the same grid");
     grid.merge(other);
   }
-  io::write_elevation_geotiff(grid, output);
+  // The GeoTIFF's bands are compressed on `threads` threads; the file is the same whatever the count.
+  const auto share = WorkShare::threads(threads ? threads : std::max(1u, std::thread::hardware_concurrency()));
+  io::write_elevation_geotiff(grid, output, 1, *share);
   if (!png.empty()) io::write_elevation_png(grid, png);
   std::printf("merged %zu grids -> %s (%zu cells)\n", inputs.size(), output.c_str(), grid.size());
   return 0;

@@ -41,7 +41,7 @@ int cmd_clean_cloud(const CleanCloudArgs& a);
 int cmd_calibrate_range(const std::string& csv);
 int cmd_calibrate_mount(const RunArgs& a, const std::vector<std::string>& scans);
 int cmd_error_budget(const RunArgs& a, const std::string& svg, const std::string& csv);
-int cmd_merge(const std::vector<std::string>& inputs, const std::string& output, const std::string& png);
+int cmd_merge(const std::vector<std::string>& inputs, const std::string& output, const std::string& png, unsigned threads);
 int cmd_docs();
 int cmd_import(const std::string& format, const std::vector<std::string>& inputs, const std::string& out_dir,
                const std::string& poses, const std::string& viewpoint = "", double max_residual = 0.02,

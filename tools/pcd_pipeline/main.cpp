@@ -110,6 +110,9 @@ int main(int argc, char** argv) {
   mrg->add_option("grids", mg_in, "elevation.tif files written by fuse_elevation or merge")->required();
   mrg->add_option("-o,--output", mg_out, "merged GeoTIFF")->required();
   mrg->add_option("--png", mg_png, "also draw the merged picture");
+  unsigned mg_threads = 0;
+  mrg->add_option("-j,--threads", mg_threads, "threads compressing the GeoTIFF (0: one per core); the file is the same whatever the count")
+      ->check(CLI::Range(0, 256));
 
   std::string imp_format, imp_out, imp_poses = "odometry";
   std::vector<std::string> imp_in;
@@ -155,7 +158,7 @@ int main(int argc, char** argv) {
     if (*docs) return cli::cmd_docs();
     if (*bch) return cli::cmd_bench(bench);
     if (*imp) return cli::cmd_import(imp_format, imp_in, imp_out, imp_poses, imp_viewpoint, imp_residual, imp_nod_origin);
-    if (*mrg) return cli::cmd_merge(mg_in, mg_out, mg_png);
+    if (*mrg) return cli::cmd_merge(mg_in, mg_out, mg_png, mg_threads);
     if (*calr) return cli::cmd_calibrate_range(cr_csv);
     if (*calm) return cli::cmd_calibrate_mount(cm_args, cm_scans);
     if (*ebud) return cli::cmd_error_budget(eb_args, eb_svg, eb_csv);

@@ -10,6 +10,7 @@
 
 #include <cstddef>
 #include <functional>
+#include <memory>
 
 namespace pcdp {
 
@@ -23,6 +24,10 @@ class WorkShare {
   virtual void run(std::size_t n, const std::function<void(std::size_t)>& task) = 0;
   /// Runs the tasks in order on the calling thread, up to the first that throws.
   static WorkShare& serial();
+  /// Runs each run()'s tasks on the calling thread and threads - 1 threads started for it (a
+  /// thread that finishes a task takes the next); every task runs even when one throws. For
+  /// callers outside a pipeline run, e.g. writing a merged elevation grid with threads.
+  static std::unique_ptr<WorkShare> threads(unsigned threads);
 };
 
 }  // namespace pcdp
