@@ -9,6 +9,11 @@
 #include <memory>
 #include <stdexcept>
 
+// The planes' floats go to the file as they lie in memory, in an "II" (little-endian) TIFF.
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ != __ORDER_LITTLE_ENDIAN__
+#error "tiff_writer.cpp writes float planes as they lie in memory: little-endian hosts only"
+#endif
+
 namespace pcdp::io::detail {
 
 namespace {
@@ -71,8 +76,8 @@ class Ifd {
     b.insert(b.end(), ext_.begin(), ext_.end());
     return b;
   }
-  /// Bytes of the directory itself for `entries` entries: where the values after it start.
   std::uint64_t entries() const { return entries_; }
+  /// Bytes of the directory itself for `entries` entries: where the values after it start.
   static std::uint64_t size(bool big, std::uint64_t entries) {
     return big ? 8 + 20 * entries + 8 : 2 + 12 * entries + 4;
   }
@@ -87,9 +92,7 @@ class Ifd {
 struct CompressorFree {
   void operator()(libdeflate_compressor* c) const { libdeflate_free_compressor(c); }
 };
-}  // namespace
 
-namespace {
 std::string xml_escape(const std::string& s) {
   std::string o;
   for (char c : s) {
@@ -103,7 +106,6 @@ std::string xml_escape(const std::string& s) {
   }
   return o;
 }
-
 }  // namespace
 
 std::string gdal_metadata(const std::vector<std::pair<std::string, std::string>>& items,
