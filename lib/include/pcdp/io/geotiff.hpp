@@ -1,12 +1,13 @@
-// The elevation grid on disk: a GeoTIFF (written by our own writer, read through GDAL) with the bands of DESIGN.md
-// (1 elevation m, 2 variance m^2, 3 count, 4 min m, 5 max m; float32, NaN = unobserved, north-up
+// The elevation grid on disk: a GeoTIFF (our own writer, GDAL's tags; read through GDAL) with the
+// bands of DESIGN.md (1 elevation m, 2 variance m^2, 3 count, 4 min m, 5 max m; float32, NaN = unobserved, north-up
 // geotransform in map metres, map x = east, map y = north), then 6 passes and, for each of the
 // cell's four highest height bands, its index, sum of 1/var, mean height and count (bands 7-22:
 // the exact merge state). GeoTIFF bands share one type, so these are float32 too: merged
 // elevations agree to float32 precision. Metadata records resolution, band height and
 // min_support. Written to a temporary name, then renamed. DEFLATE-compressed at `deflate_level`
-// (1 .. 12, libdeflate's levels, as GDAL's ZLEVEL): 1 writes the sample grid 3x faster than GDAL's default
-// 6 for a file 2.4 % larger (docs/performance.md). Strips hold at least 64 KiB of a band.
+// (1 .. 12, libdeflate's levels, as GDAL's ZLEVEL): 1 compresses the 8-pass bench grid 2.3x
+// faster than 6, GDAL's default, for a file 2.4 % larger (docs/performance.md). Strips hold at
+// least 64 KiB of a band.
 #pragma once
 
 #include <string>
