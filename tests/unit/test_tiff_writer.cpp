@@ -40,10 +40,11 @@ FloatTiff image(int w, int h, int bands, int rps) {
   return t;
 }
 
-const io::detail::PlaneFill fill = [](int b, std::vector<float>& plane) {
+const io::detail::PlaneFill fill = [](int first, std::vector<std::vector<float>>& planes) {
   const int w = 7;
-  for (std::size_t i = 0; i < plane.size(); ++i)
-    plane[i] = value(b, static_cast<int>(i % w), static_cast<int>(i / w));
+  for (std::size_t j = 0; j < planes.size(); ++j)
+    for (std::size_t i = 0; i < planes[j].size(); ++i)
+      planes[j][i] = value(first + static_cast<int>(j), static_cast<int>(i % w), static_cast<int>(i / w));
 };
 
 std::string bytes_of(const std::string& path) {
@@ -146,6 +147,15 @@ TEST(TiffWriter, SameBytesWhateverTheOrderAndThreadsOfItsTasks) {
   EXPECT_EQ(serial, bytes_of(dir + "/reverse.tif"));
   EXPECT_EQ(serial, bytes_of(dir + "/two.tif"));
   expect_reads_back(dir + "/two.tif", t);
+  // Bands filled in groups: the same file.
+  FloatTiff grouped = t;
+  grouped.groups = {6, 4, 4, 4, 4};
+  io::detail::write_float_tiff(dir + "/grouped.tif", grouped, 1, fill, two);
+  EXPECT_EQ(serial, bytes_of(dir + "/grouped.tif"));
+  grouped.groups = {6, 4, 4, 4};  // 18 of 22 bands
+  EXPECT_THROW(io::detail::write_float_tiff(dir + "/short.tif", grouped, 1, fill, two), std::invalid_argument);
+  grouped.groups = {6, 0, 4, 4, 4, 4};
+  EXPECT_THROW(io::detail::write_float_tiff(dir + "/zero.tif", grouped, 1, fill, two), std::invalid_argument);
 }
 
 TEST(TiffWriter, ErrorsNameThePathAndLeaveNoFile) {
@@ -158,8 +168,8 @@ TEST(TiffWriter, ErrorsNameThePathAndLeaveNoFile) {
     EXPECT_NE(std::string(e.what()).find("no/such/dir/x.tif"), std::string::npos) << e.what();
   }
   // A band that cannot be filled: the error comes through, and nothing is written.
-  const io::detail::PlaneFill bad = [](int b, std::vector<float>&) {
-    if (b == 2) throw std::runtime_error("band 2 failed");
+  const io::detail::PlaneFill bad = [](int first, std::vector<std::vector<float>>&) {
+    if (first == 2) throw std::runtime_error("band 2 failed");
   };
   EXPECT_THROW(io::detail::write_float_tiff(dir + "/bad.tif", t, 1, bad, WorkShare::serial()), std::runtime_error);
   EXPECT_FALSE(std::ifstream(dir + "/bad.tif").good());

@@ -128,24 +128,34 @@ void write_float_tiff(const std::string& path, const FloatTiff& t, int level, co
   const std::size_t rps = static_cast<std::size_t>(t.rows_per_strip);
   const std::size_t strips = (h + rps - 1) / rps;
   const std::size_t nb = static_cast<std::size_t>(t.bands);
+  std::vector<int> first(1, 0);  // first band of each group, then the end
+  for (int g : t.groups.empty() ? std::vector<int>(nb, 1) : t.groups) {
+    if (g < 1) throw std::invalid_argument(path + ": an empty group of bands");
+    first.push_back(first.back() + g);
+  }
+  if (first.back() != t.bands) throw std::invalid_argument(path + ": the groups do not add up to the bands");
   // Compressed strips, band after band (PlanarConfiguration 2 orders them so).
   std::vector<std::vector<std::uint8_t>> out(nb * strips);
-  share.run(nb, [&](std::size_t b) {
+  share.run(first.size() - 1, [&](std::size_t g) {
     std::unique_ptr<libdeflate_compressor, CompressorFree> c(libdeflate_alloc_compressor(level));
     if (!c) throw std::runtime_error(path + ": cannot set up DEFLATE at level " + std::to_string(level));
-    std::vector<float> plane(w * h);
-    fill(static_cast<int>(b), plane);
-    for (std::size_t s = 0; s < strips; ++s) {
-      const std::size_t rows = std::min(rps, h - s * rps);
-      const std::size_t in = rows * w * sizeof(float);
-      std::vector<std::uint8_t>& z = out[b * strips + s];
-      z.resize(libdeflate_zlib_compress_bound(c.get(), in));
-      // TIFF stores little-endian floats in an "II" file: the plane's own bytes on this host.
-      static_assert(std::numeric_limits<float>::is_iec559, "IEEE float");
-      const std::size_t n = libdeflate_zlib_compress(c.get(), plane.data() + s * rps * w, in, z.data(), z.size());
-      if (n == 0) throw std::runtime_error(path + ": DEFLATE failed");
-      z.resize(n);
-      z.shrink_to_fit();
+    std::vector<std::vector<float>> planes(static_cast<std::size_t>(first[g + 1] - first[g]), std::vector<float>(w * h));
+    fill(first[g], planes);
+    for (std::size_t j = 0; j < planes.size(); ++j) {
+      const std::vector<float>& plane = planes[j];
+      const std::size_t b = static_cast<std::size_t>(first[g]) + j;
+      for (std::size_t s = 0; s < strips; ++s) {
+        const std::size_t rows = std::min(rps, h - s * rps);
+        const std::size_t in = rows * w * sizeof(float);
+        std::vector<std::uint8_t>& z = out[b * strips + s];
+        z.resize(libdeflate_zlib_compress_bound(c.get(), in));
+        // TIFF stores little-endian floats in an "II" file: the plane's own bytes on this host.
+        static_assert(std::numeric_limits<float>::is_iec559, "IEEE float");
+        const std::size_t n = libdeflate_zlib_compress(c.get(), plane.data() + s * rps * w, in, z.data(), z.size());
+        if (n == 0) throw std::runtime_error(path + ": DEFLATE failed");
+        z.resize(n);
+        z.shrink_to_fit();
+      }
     }
   });
 

@@ -25,15 +25,19 @@ struct FloatTiff {
   std::string gdal_metadata;            ///< GDAL_METADATA (42112) XML, empty: none
   std::string gdal_nodata;              ///< GDAL_NODATA (42113), e.g. "nan"; empty: none
   bool bigtiff = false;                 ///< force BigTIFF (it is chosen anyway past 4 GiB)
+  /// Bands filled together, in band order (sizes summing to `bands`); empty: one band a group.
+  /// A source whose cells hold several bands' values is then read once per group, not per band.
+  std::vector<int> groups;
 };
 
-/// Fills band b's plane: width * height floats, row 0 first (north-up rasters: the north row).
-using PlaneFill = std::function<void(int band, std::vector<float>& plane)>;
+/// Fills the planes of bands first .. first + planes.size() - 1 (one group): width * height
+/// floats each, row 0 first (north-up rasters: the north row).
+using PlaneFill = std::function<void(int first, std::vector<std::vector<float>>& planes)>;
 
-/// Writes the raster to `path` (the caller renames it into place). One task per band: fill its
-/// plane, DEFLATE its strips at `level` (1 .. 12, libdeflate's levels). At most one plane per
-/// running task is in memory, plus the compressed strips. The bytes do not depend on which
-/// thread ran which task. Throws std::runtime_error naming the path.
+/// Writes the raster to `path` (the caller renames it into place). One task per group of bands:
+/// fill its planes, DEFLATE their strips at `level` (1 .. 12, libdeflate's levels). At most one
+/// group's planes per running task are in memory, plus the compressed strips. The bytes do not
+/// depend on which thread ran which task. Throws std::runtime_error naming the path.
 void write_float_tiff(const std::string& path, const FloatTiff& t, int level, const PlaneFill& fill,
                       WorkShare& share);
 
