@@ -6,6 +6,8 @@
 #include <limits>
 #include <sstream>
 
+#include "xml_escape.hpp"
+
 namespace pcdp::io {
 
 namespace {
@@ -17,16 +19,6 @@ double nice_step(double span, int target) {
   return 10 * mag;
 }
 
-std::string esc(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    if (c == '<') o += "&lt;";
-    else if (c == '>') o += "&gt;";
-    else if (c == '&') o += "&amp;";
-    else o += c;
-  }
-  return o;
-}
 
 std::string num(double v) {
   char b[32];
@@ -79,7 +71,7 @@ std::string svg_line_plot(const PlotSpec& spec, int width, int height) {
   std::ostringstream o;
   o << "<svg xmlns='http://www.w3.org/2000/svg' width='" << width << "' height='" << height
     << "' font-family='sans-serif' font-size='13'>\n<rect width='100%' height='100%' fill='white'/>\n";
-  o << "<text x='" << width / 2 << "' y='28' text-anchor='middle' font-size='16'>" << esc(spec.title) << "</text>\n";
+  o << "<text x='" << width / 2 << "' y='28' text-anchor='middle' font-size='16'>" << detail::xml_escape(spec.title) << "</text>\n";
   for (double y = std::ceil(y0 / ys) * ys; y <= y1 + 1e-9 * ys; y += ys) {
     o << "<line x1='" << L << "' x2='" << L + pw << "' y1='" << py(y) << "' y2='" << py(y) << "' stroke='#e5e5e5'/>";
     o << "<text x='" << L - 8 << "' y='" << py(y) + 4 << "' text-anchor='end'>" << num(y) << "</text>\n";
@@ -89,8 +81,8 @@ std::string svg_line_plot(const PlotSpec& spec, int width, int height) {
     o << "<text x='" << px(x) << "' y='" << T + ph + 18 << "' text-anchor='middle'>" << num(x) << "</text>\n";
   }
   o << "<rect x='" << L << "' y='" << T << "' width='" << pw << "' height='" << ph << "' fill='none' stroke='black'/>\n";
-  o << "<text x='" << L + pw / 2 << "' y='" << height - 15 << "' text-anchor='middle'>" << esc(spec.xlabel) << "</text>\n";
-  o << "<text transform='translate(20," << T + ph / 2 << ") rotate(-90)' text-anchor='middle'>" << esc(spec.ylabel)
+  o << "<text x='" << L + pw / 2 << "' y='" << height - 15 << "' text-anchor='middle'>" << detail::xml_escape(spec.xlabel) << "</text>\n";
+  o << "<text transform='translate(20," << T + ph / 2 << ") rotate(-90)' text-anchor='middle'>" << detail::xml_escape(spec.ylabel)
     << "</text>\n";
   int row = 0;
   for (const auto& s : spec.series) {
@@ -113,7 +105,7 @@ std::string svg_line_plot(const PlotSpec& spec, int width, int height) {
     const double ly = T + 10 + 22 * row++;
     o << "<line x1='" << L + pw + 12 << "' x2='" << L + pw + 40 << "' y1='" << ly << "' y2='" << ly << "' stroke='" << s.color
       << "' stroke-width='2'" << (s.dashed ? " stroke-dasharray='6,4'" : "") << "/>";
-    o << "<text x='" << L + pw + 46 << "' y='" << ly + 4 << "'>" << esc(s.label) << "</text>\n";
+    o << "<text x='" << L + pw + 46 << "' y='" << ly + 4 << "'>" << detail::xml_escape(s.label) << "</text>\n";
   }
   if (spec.hline) {
     o << "<line x1='" << L << "' x2='" << L + pw << "' y1='" << py(*spec.hline) << "' y2='" << py(*spec.hline)
@@ -121,7 +113,7 @@ std::string svg_line_plot(const PlotSpec& spec, int width, int height) {
     const double ly = T + 10 + 22 * row;
     o << "<line x1='" << L + pw + 12 << "' x2='" << L + pw + 40 << "' y1='" << ly << "' y2='" << ly
       << "' stroke='#d62728' stroke-dasharray='3,3'/><text x='" << L + pw + 46 << "' y='" << ly + 4 << "'>"
-      << esc(spec.hline_label) << "</text>\n";
+      << detail::xml_escape(spec.hline_label) << "</text>\n";
   }
   o << "</svg>\n";
   return o.str();

@@ -9,6 +9,8 @@
 #include <memory>
 #include <stdexcept>
 
+#include "xml_escape.hpp"
+
 // The planes' floats go to the file as they lie in memory, in an "II" (little-endian) TIFF.
 #if defined(__BYTE_ORDER__) && __BYTE_ORDER__ != __ORDER_LITTLE_ENDIAN__
 #error "tiff_writer.cpp writes float planes as they lie in memory: little-endian hosts only"
@@ -31,81 +33,67 @@ void put_double(std::vector<std::uint8_t>& b, double d) {
   put(b, u, 8);
 }
 
-// One image file directory. Values that fit in the entry's value field sit there; the others go
-// to `ext`, which follows the directory in the file at `ext_base`.
+// One image file directory: entries collected in tag order, laid out by bytes(). Values that fit
+// in an entry's value field sit there; the others follow the directory, word-aligned.
 class Ifd {
  public:
-  Ifd(bool big, std::uint64_t ext_base) : big_(big), ext_base_(ext_base) {}
-  void add(std::uint16_t tag, std::uint16_t type, std::uint64_t count, const std::vector<std::uint8_t>& value) {
-    put(dir_, tag, 2);
-    put(dir_, type, 2);
-    put(dir_, count, big_ ? 8 : 4);
-    const std::size_t field = big_ ? 8 : 4;
-    if (value.size() <= field) {
-      dir_.insert(dir_.end(), value.begin(), value.end());
-      for (std::size_t i = value.size(); i < field; ++i) dir_.push_back(0);
-    } else {
-      while (ext_.size() % 8) ext_.push_back(0);  // word-aligned values (TIFF 6.0 asks for even offsets)
-      put(dir_, ext_base_ + ext_.size(), static_cast<int>(field));
-      ext_.insert(ext_.end(), value.begin(), value.end());
-    }
-    ++entries_;
-  }
+  explicit Ifd(bool big) : big_(big) {}
   void ints(std::uint16_t tag, std::uint16_t type, const std::vector<std::uint64_t>& v) {
     const int bytes = type == kShort ? 2 : type == kLong ? 4 : 8;
     std::vector<std::uint8_t> b;
     for (std::uint64_t x : v) put(b, x, bytes);
-    add(tag, type, v.size(), b);
+    entries_.push_back({tag, type, v.size(), std::move(b)});
   }
   void doubles(std::uint16_t tag, const double* v, std::size_t n) {
     std::vector<std::uint8_t> b;
     for (std::size_t i = 0; i < n; ++i) put_double(b, v[i]);
-    add(tag, kDouble, n, b);
+    entries_.push_back({tag, kDouble, n, std::move(b)});
   }
   void ascii(std::uint16_t tag, const std::string& s) {
     std::vector<std::uint8_t> b(s.begin(), s.end());
     b.push_back(0);
-    add(tag, kAscii, b.size(), b);
+    const std::size_t n = b.size();
+    entries_.push_back({tag, kAscii, n, std::move(b)});
   }
-  /// The directory (entry count, entries, no next directory) followed by the values outside it.
-  std::vector<std::uint8_t> bytes() const {
-    std::vector<std::uint8_t> b;
-    put(b, entries_, big_ ? 8 : 2);
-    b.insert(b.end(), dir_.begin(), dir_.end());
-    put(b, 0, big_ ? 8 : 4);
-    b.insert(b.end(), ext_.begin(), ext_.end());
-    return b;
-  }
-  std::uint64_t entries() const { return entries_; }
-  /// Bytes of the directory itself for `entries` entries: where the values after it start.
-  static std::uint64_t size(bool big, std::uint64_t entries) {
-    return big ? 8 + 20 * entries + 8 : 2 + 12 * entries + 4;
+  /// The directory at file offset `at` (entry count, entries, no next directory), then the
+  /// values that did not fit in their entries.
+  std::vector<std::uint8_t> bytes(std::uint64_t at) const {
+    const int count_bytes = big_ ? 8 : 2, field = big_ ? 8 : 4;
+    const std::uint64_t dir_size = count_bytes + (big_ ? 20 : 12) * entries_.size() + field;
+    std::vector<std::uint8_t> dir, ext;
+    put(dir, entries_.size(), count_bytes);
+    for (const Entry& e : entries_) {
+      put(dir, e.tag, 2);
+      put(dir, e.type, 2);
+      put(dir, e.count, field);
+      if (e.value.size() <= static_cast<std::size_t>(field)) {
+        dir.insert(dir.end(), e.value.begin(), e.value.end());
+        for (std::size_t i = e.value.size(); i < static_cast<std::size_t>(field); ++i) dir.push_back(0);
+      } else {
+        while (ext.size() % 8) ext.push_back(0);  // TIFF 6.0 asks for even offsets
+        put(dir, at + dir_size + ext.size(), field);
+        ext.insert(ext.end(), e.value.begin(), e.value.end());
+      }
+    }
+    put(dir, 0, field);
+    dir.insert(dir.end(), ext.begin(), ext.end());
+    return dir;
   }
 
  private:
+  struct Entry {
+    std::uint16_t tag, type;
+    std::uint64_t count;
+    std::vector<std::uint8_t> value;
+  };
   bool big_;
-  std::uint64_t ext_base_;
-  std::uint64_t entries_ = 0;
-  std::vector<std::uint8_t> dir_, ext_;
+  std::vector<Entry> entries_;
 };
 
 struct CompressorFree {
   void operator()(libdeflate_compressor* c) const { libdeflate_free_compressor(c); }
 };
 
-std::string xml_escape(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    switch (c) {
-      case '&': o += "&amp;"; break;
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '"': o += "&quot;"; break;
-      default: o += c;
-    }
-  }
-  return o;
-}
 }  // namespace
 
 std::string gdal_metadata(const std::vector<std::pair<std::string, std::string>>& items,
@@ -165,8 +153,7 @@ void write_float_tiff(const std::string& path, const FloatTiff& t, int level, co
   const bool big = t.bigtiff || data_bytes + (std::uint64_t{1} << 24) > std::numeric_limits<std::uint32_t>::max();
   const std::uint64_t header = big ? 16 : 8;
   const std::uint64_t ifd_at = (header + data_bytes + 7) / 8 * 8;
-  const std::uint64_t entries = 14 + (nb > 1) + !t.gdal_metadata.empty() + !t.gdal_nodata.empty();
-  Ifd ifd(big, ifd_at + Ifd::size(big, entries));
+  Ifd ifd(big);
   const std::uint16_t off_type = big ? kLong8 : kLong;
   std::vector<std::uint64_t> offsets, counts;
   std::uint64_t at = header;
@@ -194,7 +181,6 @@ void write_float_tiff(const std::string& path, const FloatTiff& t, int level, co
   if (!t.gdal_metadata.empty()) ifd.ascii(42112, t.gdal_metadata);
   if (!t.gdal_nodata.empty()) ifd.ascii(42113, t.gdal_nodata);
 
-  if (ifd.entries() != entries) throw std::logic_error("write_float_tiff: the directory's entry count is off");
   std::vector<std::uint8_t> head;
   head.push_back('I');
   head.push_back('I');
@@ -207,7 +193,7 @@ void write_float_tiff(const std::string& path, const FloatTiff& t, int level, co
     put(head, 42, 2);
     put(head, ifd_at, 4);
   }
-  const std::vector<std::uint8_t> tail = ifd.bytes();
+  const std::vector<std::uint8_t> tail = ifd.bytes(ifd_at);
   std::FILE* f = std::fopen(path.c_str(), "wb");
   if (!f) throw std::runtime_error(path + ": cannot create");
   bool ok = std::fwrite(head.data(), 1, head.size(), f) == head.size();
