@@ -238,7 +238,7 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   // Stage::finish_parts); errors are reported in stage order. Closing returns.pcd and cloud.pcd
   // (each copies its body behind the header) are two more parts, last: on 2 threads they run
   // beside elevation.tif, the longest part, instead of after it. A part may hand tasks to the
-  // WorkShare (elevation.tif compresses one band per task): a thread with no part left helps.
+  // WorkShare (elevation.tif compresses one group of bands per task): a thread with no part left helps.
   LockedSink sink(out);
   std::vector<std::pair<std::size_t, std::size_t>> parts;  // (stage, part); stage == size: a writer
   for (std::size_t s = 0; s < stages_.size(); ++s)

@@ -35,6 +35,10 @@
 namespace pcdp::cli {
 
 namespace {
+/// A --threads value: 0 means one per core.
+unsigned threads_or_cores(unsigned threads) {
+  return threads ? threads : std::max(1u, std::thread::hardware_concurrency());
+}
 LoadOptions load_options(const RunArgs& a) {
   LoadOptions o;
   for (const auto& s : a.sets) o.overrides.push_back(parse_override(s));
@@ -68,8 +72,7 @@ int cmd_run(const RunArgs& a) {
   }
   // Not capped at the number of passes: threads with no pass to take share the last passes'
   // ray casts (work_share.hpp) and write the products at the end.
-  const unsigned threads = a.threads ? a.threads : std::max(1u, std::thread::hardware_concurrency());
-  const RunSummary s = p.run(progress, threads);
+  const RunSummary s = p.run(progress, threads_or_cores(a.threads));
   if (tty) std::fprintf(stderr, "\r\033[K");
   if (!a.quiet) {
     std::cout << "pcd_pipeline: " << s.passes.size() << " pass(es), " << s.input_returns << " returns, "
@@ -428,7 +431,7 @@ int cmd_merge(const std::vector<std::string>& inputs, const std::string& output,
     grid.merge(other);
   }
   // The GeoTIFF's bands are compressed on `threads` threads; the file is the same whatever the count.
-  const auto share = WorkShare::threads(threads ? threads : std::max(1u, std::thread::hardware_concurrency()));
+  const auto share = WorkShare::threads(threads_or_cores(threads));
   io::write_elevation_geotiff(grid, output, 1, *share);
   if (!png.empty()) io::write_elevation_png(grid, png);
   std::printf("merged %zu grids -> %s (%zu cells)\n", inputs.size(), output.c_str(), grid.size());
