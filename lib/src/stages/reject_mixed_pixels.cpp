@@ -234,13 +234,24 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
 }
 
 namespace {
-/// How the return at `pos` lies between its immediate neighbours in one direction.
-enum Smoothness : char { kUnknown = 0, kSmooth = 1, kRough = 2, kFlat = 3 };
+/// How the return at `pos` lies between its immediate neighbours in one direction. With only one
+/// immediate neighbour (the other position is a void, or the end of the line or of the sweep),
+/// whether it keeps the range of that neighbour (within an edge jump) or not: one neighbour cannot
+/// say smooth or rough, but it can say the return is not flat there.
+enum Smoothness : char { kUnknown = 0, kSmooth = 1, kRough = 2, kFlat = 3, kOneFlat = 4, kOneChanging = 5 };
 void mark_smooth(const ReturnsView& v, const std::vector<std::size_t>& seq, const MixedPixelParams& p,
                  double range_sigma, std::vector<char>& smooth) {
-  for (std::size_t pos = 1; pos + 1 < seq.size(); ++pos) {
-    const std::size_t a = seq[pos - 1], i = seq[pos], b = seq[pos + 1];
-    if (!v.usable[i] || !v.usable[a] || !v.usable[b]) continue;
+  for (std::size_t pos = 0; pos < seq.size(); ++pos) {
+    const std::size_t i = seq[pos];
+    if (!v.usable[i]) continue;
+    const bool has_a = pos > 0 && v.usable[seq[pos - 1]], has_b = pos + 1 < seq.size() && v.usable[seq[pos + 1]];
+    if (has_a != has_b) {
+      const double r_other = v.range[has_a ? seq[pos - 1] : seq[pos + 1]];
+      smooth[i] = std::fabs(r_other - v.range[i]) <= jump_at(p, v.range[i]) ? kOneFlat : kOneChanging;
+      continue;
+    }
+    if (!has_a) continue;
+    const std::size_t a = seq[pos - 1], b = seq[pos + 1];
     const double tol = tolerance_at(p, v.range[i], range_sigma);
     // Curved surfaces (ground at grazing incidence) bend by a few per cent of the local step.
     const double allow = tol + 0.05 * std::fabs(v.range[b] - v.range[a]);
@@ -300,10 +311,17 @@ void mark_spikes_off_surface(const ReturnsView& v, const std::vector<std::size_t
 /// where the return is rough across (grazing ground is smooth across; a veil is not); a corner
 /// counts unless the return is flat across (the side face of a box, seen edge-on, is one return
 /// wide along the line but keeps its range from line to line; a veil changes with the background).
+/// Where the other direction has one immediate neighbour only (the first or last line of a nod
+/// sweep, or beside a void), a corner counts if the return does not keep that neighbour's range:
+/// it is then not flat (on benchmark seeds 1-15, 6 more mixed pixels in setting B and 8 in A, for
+/// 4 and 5 more valid returns rejected). A weak edge there is not counted: one neighbour cannot
+/// tell a veil from grazing ground, which changes range fast between lines but smoothly (counting
+/// those whose return is also off the chord of its neighbours along the line found 8 more mixed
+/// pixels in both settings for 11 valid returns, and 5 more of 18,110 on pure grazing ground).
 bool is_mixed(char edge, char other_direction) {
   switch (edge) {
     case kStrongEdge: return true;
-    case kCornerEdge: return other_direction == kSmooth || other_direction == kRough;
+    case kCornerEdge: return other_direction == kSmooth || other_direction == kRough || other_direction == kOneChanging;
     case kWeakEdge: return other_direction == kRough;
     default: return false;
   }
