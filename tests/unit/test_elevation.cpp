@@ -141,7 +141,9 @@ TEST(Elevation, GeoTiffRoundTripAndGdalinfo) {
   g.add(1.1, -2.3, 0.51, 1e-4, 0);
   g.add(3.9, 4.4, 1.5, 1e-4, 0);
   const std::string dir = test::fresh_dir();
-  io::write_elevation_geotiff(g, dir + "/e.tif");
+  // It returns the cells with a surface: the first has two points, the second one, below the
+  // default min_support of 2.
+  EXPECT_EQ(io::write_elevation_geotiff(g, dir + "/e.tif"), 1u);
   expect_same(g, io::read_elevation_geotiff(dir + "/e.tif"), 1e-6);
   // gdalinfo (Debian's gdal-bin) sees the bands, nodata and north-up geotransform of DESIGN.md.
   const std::string info = gdalinfo(dir + "/e.tif");

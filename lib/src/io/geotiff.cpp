@@ -48,7 +48,7 @@ void rename_into_place(const std::string& tmp, const std::string& path) {
 }
 }  // namespace
 
-void write_elevation_geotiff(const ElevationGrid& grid, const std::string& path, int deflate_level, WorkShare& share) {
+std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string& path, int deflate_level, WorkShare& share) {
   if (deflate_level < 1 || deflate_level > 12)
     throw std::invalid_argument("DEFLATE level " + std::to_string(deflate_level) + " is outside 1 .. 12");
   std::int64_t ix0 = 0, iy0 = 0, ix1 = 0, iy1 = 0;
@@ -92,6 +92,7 @@ void write_elevation_geotiff(const ElevationGrid& grid, const std::string& path,
   // more peak memory).
   t.groups.push_back(kFixed);
   for (int k = 0; k < ElevationCell::kBands; ++k) t.groups.push_back(kPerBand);
+  std::size_t surfaces = 0;  // counted by the one task that fills the fixed bands
   const auto fill = [&](int first, std::vector<std::vector<float>>& planes) {
     for (auto& p : planes) std::fill(p.begin(), p.end(), nan);
     const std::size_t k = first >= kFixed ? static_cast<std::size_t>((first - kFixed) / kPerBand) : 0;
@@ -111,6 +112,7 @@ void write_elevation_geotiff(const ElevationGrid& grid, const std::string& path,
       if (grid.surface(c, e, var)) {
         planes[0][at] = static_cast<float>(e);
         planes[1][at] = static_cast<float>(var);
+        ++surfaces;
       }
       planes[2][at] = static_cast<float>(c.count);
       planes[3][at] = c.zmin;
@@ -126,6 +128,7 @@ void write_elevation_geotiff(const ElevationGrid& grid, const std::string& path,
     throw;
   }
   rename_into_place(tmp, path);
+  return surfaces;
 }
 
 ElevationGrid read_elevation_geotiff(const std::string& path) {

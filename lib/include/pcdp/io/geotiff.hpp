@@ -10,6 +10,7 @@
 // least 64 KiB of a band.
 #pragma once
 
+#include <cstddef>
 #include <string>
 
 #include "pcdp/elevation.hpp"
@@ -18,8 +19,9 @@
 namespace pcdp::io {
 
 /// The strips are compressed as tasks of `share` (one per band), so threads with nothing else
-/// to do help; the file's bytes do not depend on how many did.
-void write_elevation_geotiff(const ElevationGrid& grid, const std::string& path, int deflate_level = 1,
+/// to do help; the file's bytes do not depend on how many did. Returns the number of cells with a
+/// surface (the pixels of band 1 that are not nodata).
+std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string& path, int deflate_level = 1,
                              WorkShare& share = WorkShare::serial());
 /// Throws InputError when the file is missing, not a GeoTIFF of pcd_pipeline, or lacks the
 /// merge bands.
