@@ -1,3 +1,4 @@
+#include <gdal_priv.h>
 #include <gtest/gtest.h>
 #include <png.h>
 
@@ -11,6 +12,7 @@
 #include <vector>
 
 #include "pcdp/elevation.hpp"
+#include "pcdp/errors.hpp"
 #include "pcdp/io/geotiff.hpp"
 #include "pcdp/pass.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
@@ -154,6 +156,33 @@ TEST(Elevation, GeoTiffRoundTripAndGdalinfo) {
     EXPECT_NE(info.find(band), std::string::npos) << band;
   EXPECT_NE(info.find("NoData Value=nan"), std::string::npos);
   EXPECT_NE(info.find("Type=Float32"), std::string::npos);
+  // Copies GDAL makes of it (as GDAL wrote elevation.tif for earlier versions, and in the layouts
+  // it writes by default) are the same grid to `merge`, which reads without GDAL.
+  GDALAllRegister();
+  GDALDataset* src = static_cast<GDALDataset*>(GDALOpen((dir + "/e.tif").c_str(), GA_ReadOnly));
+  ASSERT_NE(src, nullptr);
+  const std::vector<std::vector<const char*>> layouts = {
+      {"COMPRESS=DEFLATE", "INTERLEAVE=BAND", nullptr}, {"INTERLEAVE=PIXEL", nullptr}, {"BIGTIFF=YES", nullptr}};
+  for (std::size_t k = 0; k < layouts.size(); ++k) {
+    const std::string copy = dir + "/copy" + std::to_string(k) + ".tif";
+    GDALDataset* dst = GetGDALDriverManager()->GetDriverByName("GTiff")->CreateCopy(
+        copy.c_str(), src, FALSE, const_cast<char**>(layouts[k].data()), nullptr, nullptr);
+    ASSERT_NE(dst, nullptr);
+    GDALClose(dst);
+    expect_same(g, io::read_elevation_geotiff(copy), 1e-6);
+  }
+  GDALClose(src);
+  // Without the PCDP_* metadata it is not one of our grids.
+  GDALDataset* bare = GetGDALDriverManager()->GetDriverByName("GTiff")->Create((dir + "/bare.tif").c_str(), 4, 4, 22,
+                                                                              GDT_Float32, nullptr);
+  ASSERT_NE(bare, nullptr);
+  GDALClose(bare);
+  try {
+    io::read_elevation_geotiff(dir + "/bare.tif");
+    ADD_FAILURE() << "read";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("not an elevation grid of pcd_pipeline"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Elevation, GeoTiffStripsHoldAtLeast64KiBOfABand) {

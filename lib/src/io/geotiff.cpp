@@ -1,8 +1,5 @@
 #include "pcdp/io/geotiff.hpp"
 
-#include <cpl_conv.h>
-#include <cpl_string.h>
-#include <gdal_priv.h>
 #include <png.h>
 
 #include <algorithm>
@@ -10,12 +7,12 @@
 #include <cstdio>
 #include <cstring>
 #include <limits>
-#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "pcdp/errors.hpp"
+#include "tiff_reader.hpp"
 #include "tiff_writer.hpp"
 
 namespace pcdp::io {
@@ -30,14 +27,6 @@ std::string band_name(int b) {
   if (b < kFixed) return fixed[b];
   static const char* const per[kPerBand] = {"index", "weight", "mean", "count"};
   return "height_band_" + std::to_string((b - kFixed) / kPerBand) + "_" + per[(b - kFixed) % kPerBand];
-}
-
-void gdal_init() {
-  static std::once_flag once;
-  std::call_once(once, [] {
-    GDALAllRegister();
-    CPLSetErrorHandler(CPLQuietErrorHandler);
-  });
 }
 
 void rename_into_place(const std::string& tmp, const std::string& path) {
@@ -132,48 +121,57 @@ std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string
 }
 
 ElevationGrid read_elevation_geotiff(const std::string& path) {
-  gdal_init();
-  GDALDataset* ds = static_cast<GDALDataset*>(GDALOpen(path.c_str(), GA_ReadOnly));
-  if (!ds) throw InputError(path + ": cannot open as a GeoTIFF");
-  const char* r = ds->GetMetadataItem("PCDP_RESOLUTION");
-  const char* bnd = ds->GetMetadataItem("PCDP_BAND");
-  const char* sup = ds->GetMetadataItem("PCDP_MIN_SUPPORT");
-  if (!r || !bnd || !sup || ds->GetRasterCount() != kBands) {
-    GDALClose(ds);
-    throw InputError(path + ": not an elevation grid of pcd_pipeline (needs its " + std::to_string(kBands) +
-                     " bands and PCDP_* metadata to merge)");
+  detail::FloatTiffData t = detail::read_float_tiff(path);
+  std::string r, bnd, sup;
+  for (const auto& [name, value] : detail::gdal_metadata_items(t.gdal_metadata)) {
+    if (name == "PCDP_RESOLUTION") r = value;
+    if (name == "PCDP_BAND") bnd = value;
+    if (name == "PCDP_MIN_SUPPORT") sup = value;
   }
-  const double res = std::atof(r);
-  ElevationGrid grid(res, std::atof(bnd), static_cast<std::uint32_t>(std::atoi(sup)));
-  double gt[6];
-  ds->GetGeoTransform(gt);
-  const int nx = ds->GetRasterXSize(), ny = ds->GetRasterYSize();
-  const std::int64_t ix0 = std::llround(gt[0] / res), iy1 = std::llround(gt[3] / res) - 1;
-  std::vector<std::vector<float>> bands(kBands, std::vector<float>(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny)));
-  for (int b = 0; b < kBands; ++b)
-    if (ds->GetRasterBand(b + 1)->RasterIO(GF_Read, 0, 0, nx, ny, bands[static_cast<std::size_t>(b)].data(), nx, ny,
-                                           GDT_Float32, 0, 0) != CE_None) {
-      GDALClose(ds);
-      throw InputError(path + ": GDAL read failed");
-    }
-  GDALClose(ds);
+  if (r.empty() || bnd.empty() || sup.empty() || t.bands != kBands || !t.georeferenced)
+    throw InputError(path + ": not an elevation grid of pcd_pipeline (needs its " + std::to_string(kBands) +
+                     " bands, its georeferencing and PCDP_* metadata to merge)");
+  const double res = std::atof(r.c_str()), band = std::atof(bnd.c_str());
+  const long support = std::atol(sup.c_str());
+  if (!(res > 0) || !(band > 0) || support < 1 || support > 1000000)
+    throw InputError(path + ": PCDP_RESOLUTION " + r + ", PCDP_BAND " + bnd + " or PCDP_MIN_SUPPORT " + sup +
+                     " is not a positive number");
+  ElevationGrid grid(res, band, static_cast<std::uint32_t>(support));
+  // The raster's north-west corner, as GDAL's geotransform has it (pixel-is-area tie point).
+  const double x0 = t.tiepoint[3] - t.tiepoint[0] * t.pixel_scale[0], y0 = t.tiepoint[4] + t.tiepoint[1] * t.pixel_scale[1];
+  const int nx = t.width, ny = t.height;
+  constexpr double kMaxIndex = 4.5e15;  // cell indices stay exact in a double, and far from overflow
+  if (!(std::fabs(x0 / res) < kMaxIndex) || !(std::fabs(y0 / res) < kMaxIndex))
+    throw InputError(path + ": the raster's corner (" + std::to_string(x0) + ", " + std::to_string(y0) +
+                     ") is not a finite position on its grid");
+  const std::int64_t ix0 = std::llround(x0 / res), iy1 = std::llround(y0 / res) - 1;
+  const std::vector<std::vector<float>>& bands = t.planes;
+  // Counts, pass counts and band indices are whole numbers in the file; anything else is damage
+  // (and would not convert to an integer).
+  const auto whole = [&](float v, double lo, double hi, const char* what, int row, int col) {
+    if (!(v >= lo && v <= hi) || v != std::floor(v))
+      throw InputError(path + ": pixel (" + std::to_string(col) + ", " + std::to_string(row) + "): " + what + " " +
+                       std::to_string(v) + " is not a whole number in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+    return static_cast<double>(v);
+  };
+  constexpr double kMaxCount = 4294967295.0, kMaxBand = 2147483647.0;
   for (int row = 0; row < ny; ++row)
     for (int col = 0; col < nx; ++col) {
       const std::size_t i = static_cast<std::size_t>(row) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(col);
       if (std::isnan(bands[2][i]) || bands[2][i] <= 0) continue;
       ElevationCell c;
-      c.count = static_cast<std::uint32_t>(bands[2][i]);
+      c.count = static_cast<std::uint32_t>(whole(bands[2][i], 1, kMaxCount, "count", row, col));
       c.zmin = bands[3][i];
       c.zmax = bands[4][i];
-      c.passes = static_cast<std::uint32_t>(bands[5][i]);
+      c.passes = static_cast<std::uint32_t>(whole(bands[5][i], 0, kMaxCount, "passes", row, col));
       for (int k = 0; k < ElevationCell::kBands; ++k) {
         const std::size_t b0 = static_cast<std::size_t>(kFixed + kPerBand * k);
         if (std::isnan(bands[b0 + 3][i]) || bands[b0 + 3][i] <= 0) continue;
         HeightBand hb;
-        hb.index = static_cast<std::int32_t>(bands[b0][i]);
+        hb.index = static_cast<std::int32_t>(whole(bands[b0][i], -kMaxBand - 1, kMaxBand, "height band index", row, col));
         hb.w = bands[b0 + 1][i];
         hb.wz = hb.w * static_cast<double>(bands[b0 + 2][i]);
-        hb.count = static_cast<std::uint32_t>(bands[b0 + 3][i]);
+        hb.count = static_cast<std::uint32_t>(whole(bands[b0 + 3][i], 1, kMaxCount, "height band count", row, col));
         c.bands[static_cast<std::size_t>(k)] = hb;
       }
       grid.set_cell(ix0 + col, iy1 - row, c);

@@ -9,18 +9,12 @@
 #include <memory>
 #include <stdexcept>
 
+#include "tiff_format.hpp"
 #include "xml_escape.hpp"
-
-// The planes' floats go to the file as they lie in memory, in an "II" (little-endian) TIFF.
-#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ != __ORDER_LITTLE_ENDIAN__
-#error "tiff_writer.cpp writes float planes as they lie in memory: little-endian hosts only"
-#endif
 
 namespace pcdp::io::detail {
 
 namespace {
-// TIFF 6.0 field types, and BigTIFF's 8-byte one.
-constexpr std::uint16_t kAscii = 2, kShort = 3, kLong = 4, kDouble = 12, kLong8 = 16;
 
 // Little-endian bytes, whatever the host.
 void put(std::vector<std::uint8_t>& b, std::uint64_t v, int bytes) {
@@ -39,7 +33,7 @@ class Ifd {
  public:
   explicit Ifd(bool big) : big_(big) {}
   void ints(std::uint16_t tag, std::uint16_t type, const std::vector<std::uint64_t>& v) {
-    const int bytes = type == kShort ? 2 : type == kLong ? 4 : 8;
+    const int bytes = tiff_type_bytes(type);
     std::vector<std::uint8_t> b;
     for (std::uint64_t x : v) put(b, x, bytes);
     entries_.push_back({tag, type, v.size(), std::move(b)});
@@ -47,13 +41,13 @@ class Ifd {
   void doubles(std::uint16_t tag, const double* v, std::size_t n) {
     std::vector<std::uint8_t> b;
     for (std::size_t i = 0; i < n; ++i) put_double(b, v[i]);
-    entries_.push_back({tag, kDouble, n, std::move(b)});
+    entries_.push_back({tag, kTiffDouble, n, std::move(b)});
   }
   void ascii(std::uint16_t tag, const std::string& s) {
     std::vector<std::uint8_t> b(s.begin(), s.end());
     b.push_back(0);
     const std::size_t n = b.size();
-    entries_.push_back({tag, kAscii, n, std::move(b)});
+    entries_.push_back({tag, kTiffAscii, n, std::move(b)});
   }
   /// The directory at file offset `at` (entry count, entries, no next directory), then the
   /// values that did not fit in their entries.
@@ -154,7 +148,7 @@ void write_float_tiff(const std::string& path, const FloatTiff& t, int level, co
   const std::uint64_t header = big ? 16 : 8;
   const std::uint64_t ifd_at = (header + data_bytes + 7) / 8 * 8;
   Ifd ifd(big);
-  const std::uint16_t off_type = big ? kLong8 : kLong;
+  const std::uint16_t off_type = big ? kTiffLong8 : kTiffLong;
   std::vector<std::uint64_t> offsets, counts;
   std::uint64_t at = header;
   for (const auto& z : out) {
@@ -163,19 +157,19 @@ void write_float_tiff(const std::string& path, const FloatTiff& t, int level, co
     at += z.size();
   }
   // Entries in ascending tag order.
-  ifd.ints(256, kLong, {w});                                // ImageWidth
-  ifd.ints(257, kLong, {h});                                // ImageLength
-  ifd.ints(258, kShort, std::vector<std::uint64_t>(nb, 32));  // BitsPerSample
-  ifd.ints(259, kShort, {8});                               // Compression: Deflate (zlib stream)
-  ifd.ints(262, kShort, {1});                               // PhotometricInterpretation: BlackIsZero
+  ifd.ints(256, kTiffLong, {w});                                // ImageWidth
+  ifd.ints(257, kTiffLong, {h});                                // ImageLength
+  ifd.ints(258, kTiffShort, std::vector<std::uint64_t>(nb, 32));  // BitsPerSample
+  ifd.ints(259, kTiffShort, {8});                               // Compression: Deflate (zlib stream)
+  ifd.ints(262, kTiffShort, {1});                               // PhotometricInterpretation: BlackIsZero
   ifd.ints(273, off_type, offsets);                         // StripOffsets
-  ifd.ints(277, kShort, {nb});                              // SamplesPerPixel
-  ifd.ints(278, kLong, {rps});                              // RowsPerStrip
+  ifd.ints(277, kTiffShort, {nb});                              // SamplesPerPixel
+  ifd.ints(278, kTiffLong, {rps});                              // RowsPerStrip
   ifd.ints(279, off_type, counts);                          // StripByteCounts
-  ifd.ints(284, kShort, {2});                               // PlanarConfiguration: separate planes
-  ifd.ints(317, kShort, {1});                               // Predictor: none
-  if (nb > 1) ifd.ints(338, kShort, std::vector<std::uint64_t>(nb - 1, 0));  // ExtraSamples: unspecified
-  ifd.ints(339, kShort, std::vector<std::uint64_t>(nb, 3));  // SampleFormat: IEEE float
+  ifd.ints(284, kTiffShort, {2});                               // PlanarConfiguration: separate planes
+  ifd.ints(317, kTiffShort, {1});                               // Predictor: none
+  if (nb > 1) ifd.ints(338, kTiffShort, std::vector<std::uint64_t>(nb - 1, 0));  // ExtraSamples: unspecified
+  ifd.ints(339, kTiffShort, std::vector<std::uint64_t>(nb, 3));  // SampleFormat: IEEE float
   ifd.doubles(33550, t.pixel_scale, 3);
   ifd.doubles(33922, t.tiepoint, 6);
   if (!t.gdal_metadata.empty()) ifd.ascii(42112, t.gdal_metadata);

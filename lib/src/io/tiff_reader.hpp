@@ -1,0 +1,36 @@
+// A small reader of the float32 GeoTIFFs pcd_pipeline writes (tiff_writer.hpp) and those GDAL
+// wrote for it before (COMPRESS=DEFLATE, INTERLEAVE=BAND, strips): enough for `merge` to read
+// elevation grids back without linking GDAL, whose hundred-odd shared libraries cost every start
+// of the command line tool about 50 ms (docs/performance.md, twelfth round).
+//
+// It reads little-endian ("II") classic TIFF and BigTIFF, strips (not tiles), uncompressed or
+// DEFLATE, no predictor, 32-bit IEEE float samples, planar or interleaved; the GeoTIFF pixel
+// scale and tie point; and GDAL's metadata tag. Anything else is an InputError naming the file
+// and the rule. Every offset and count is checked against the file before use, and the raster's
+// size against what its strips can hold (DEFLATE expands at most 1032 to 1), so a damaged or
+// hostile file cannot make it read out of bounds or allocate without limit.
+#pragma once
+
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace pcdp::io::detail {
+
+struct FloatTiffData {
+  int width = 0, height = 0, bands = 0;
+  double pixel_scale[3] = {0, 0, 0};        ///< ModelPixelScaleTag (33550); zeros: absent
+  double tiepoint[6] = {0, 0, 0, 0, 0, 0};  ///< ModelTiepointTag (33922), the first tie point
+  bool georeferenced = false;               ///< both tags were present
+  std::string gdal_metadata;                ///< GDAL_METADATA (42112) XML; empty: absent
+  std::vector<std::vector<float>> planes;   ///< one per band, width * height, row 0 first
+};
+
+/// Reads the whole raster. Throws InputError naming `path` and what is wrong.
+FloatTiffData read_float_tiff(const std::string& path);
+
+/// The dataset items (no `sample` attribute) of GDAL_METADATA XML, name and value, the value
+/// unescaped twice as GDAL's reader does (gdal_metadata() in tiff_writer.hpp escapes it twice).
+std::vector<std::pair<std::string, std::string>> gdal_metadata_items(const std::string& xml);
+
+}  // namespace pcdp::io::detail
