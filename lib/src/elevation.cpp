@@ -91,16 +91,17 @@ void ElevationGrid::add(const ElevationSample* s, std::size_t n) {
 void ElevationGrid::merge(const ElevationGrid& other) {
   if (std::fabs(other.res_ - res_) > 1e-12 || std::fabs(other.band_ - band_) > 1e-12)
     throw std::invalid_argument("elevation grids differ in resolution or band and cannot be merged");
-  for (std::size_t i = 0; i < other.size_; ++i) {
-    const ElevationCell& o = other.cell(i);
-    if (o.empty()) continue;
-    ElevationCell& c = touch(other.chunks_[i / kChunk].keys[i % kChunk]);
-    for (const auto& b : o.bands) c.absorb(b);
-    c.count += o.count;
-    c.passes += o.passes;
-    c.zmin = std::min(c.zmin, o.zmin);
-    c.zmax = std::max(c.zmax, o.zmax);
-  }
+  for (std::size_t i = 0; i < other.size_; ++i) merge_cell_at(other.chunks_[i / kChunk].keys[i % kChunk], other.cell(i));
+}
+
+void ElevationGrid::merge_cell_at(std::uint64_t k, const ElevationCell& o) {
+  if (o.empty()) return;
+  ElevationCell& c = touch(k);
+  for (const auto& b : o.bands) c.absorb(b);
+  c.count += o.count;
+  c.passes += o.passes;
+  c.zmin = std::min(c.zmin, o.zmin);
+  c.zmax = std::max(c.zmax, o.zmax);
 }
 
 void ElevationGrid::set_cell(std::int64_t ix, std::int64_t iy, const ElevationCell& c) { touch(key(ix, iy)) = c; }

@@ -13,6 +13,7 @@
 
 #include "pcdp/elevation.hpp"
 #include "pcdp/errors.hpp"
+#include "pcdp/options.hpp"
 #include "pcdp/io/geotiff.hpp"
 #include "pcdp/pass.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
@@ -135,6 +136,30 @@ TEST(Elevation, MergingGridsOfDisjointPassesEqualsFusingAllPasses) {
   ElevationGrid fa = io::read_elevation_geotiff(dir + "/a.tif");
   fa.merge(io::read_elevation_geotiff(dir + "/b.tif"));
   expect_same(io::read_elevation_geotiff(dir + "/all.tif"), fa, 1e-6);
+  // merge_elevation_geotiff (what `merge` does) reads b into the grid a strip of rows at a time
+  // (these files hold several strips): the same cells, the same floats, in the same order.
+  ElevationGrid fs = io::read_elevation_geotiff(dir + "/a.tif");
+  io::merge_elevation_geotiff(fs, dir + "/b.tif");
+  ASSERT_EQ(fs.size(), fa.size());
+  expect_same(fa, fs, 0.0);
+  std::vector<std::int64_t> order_a, order_s;
+  fa.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell&) { order_a.insert(order_a.end(), {ix, iy}); });
+  fs.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell&) { order_s.insert(order_s.end(), {ix, iy}); });
+  EXPECT_EQ(order_a, order_s);
+  // A grid of another resolution is refused before any cell is read: the grid is as it was.
+  ElevationGrid coarse(2 * prm.resolution, prm.band);
+  fuse_pass(coarse, passes[2], prm, 1e-4);
+  io::write_elevation_geotiff(coarse, dir + "/coarse.tif");
+  try {
+    io::merge_elevation_geotiff(fs, dir + "/coarse.tif");
+    ADD_FAILURE() << "merged a grid of another resolution";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("coarse.tif: resolution " + format_value(2 * prm.resolution) + " m"),
+              std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("grids merge only on the same grid"), std::string::npos) << e.what();
+  }
+  ASSERT_EQ(fs.size(), fa.size());
+  expect_same(fa, fs, 0.0);
 }
 
 TEST(Elevation, GeoTiffRoundTripAndGdalinfo) {

@@ -114,6 +114,26 @@ TEST(TiffReader, ReadsOurOwnClassicAndBigTiffBitForBit) {
     EXPECT_EQ(d.tiepoint[3], -3.0);
     EXPECT_EQ(d.tiepoint[4], 12.5);
     EXPECT_EQ(d.gdal_metadata, t.gdal_metadata);
+    // Row by row (what `merge` reads): the strips in order, 4 + 4 + 1 rows, every band's rows.
+    io::detail::FloatTiffRows rows(path);
+    EXPECT_EQ(rows.info().height, 9);
+    std::vector<std::vector<float>> got;
+    int first = -1, count = 0, next_row = 0;
+    std::vector<int> counts;
+    while (rows.next(first, count, got)) {
+      EXPECT_EQ(first, next_row);
+      ASSERT_EQ(got.size(), 5u);
+      for (int b = 0; b < 5; ++b)
+        for (int i = 0; i < count * kWidth; ++i)
+          EXPECT_EQ(std::memcmp(&got[static_cast<std::size_t>(b)][static_cast<std::size_t>(i)],
+                                &d.planes[static_cast<std::size_t>(b)][static_cast<std::size_t>(first * kWidth + i)],
+                                sizeof(float)),
+                    0);
+      counts.push_back(count);
+      next_row += count;
+    }
+    EXPECT_EQ(counts, (std::vector<int>{4, 4, 1}));
+    EXPECT_FALSE(rows.next(first, count, got));  // and stays at the end
     // Dataset items only (not the band description), unescaped twice as GDAL does.
     const auto items = io::detail::gdal_metadata_items(d.gdal_metadata);
     ASSERT_EQ(items.size(), 2u);

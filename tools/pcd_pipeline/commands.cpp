@@ -420,16 +420,9 @@ int cmd_error_budget(const RunArgs& a, const std::string& svg, const std::string
 
 int cmd_merge(const std::vector<std::string>& inputs, const std::string& output, const std::string& png, unsigned threads) {
   if (inputs.size() < 2) throw ConfigError("merge: give two or more elevation grids to merge");
+  // The first grid sets the grid; the others are read into it a strip of rows at a time.
   ElevationGrid grid = io::read_elevation_geotiff(inputs[0]);
-  for (std::size_t k = 1; k < inputs.size(); ++k) {
-    const ElevationGrid other = io::read_elevation_geotiff(inputs[k]);
-    if (std::fabs(other.resolution() - grid.resolution()) > 1e-9 || std::fabs(other.band() - grid.band()) > 1e-9 ||
-        other.min_support() != grid.min_support())
-      throw InputError(inputs[k] + ": resolution " + format_value(other.resolution()) + " m and band " +
-                       format_value(other.band()) + " m differ from " + inputs[0] + "'s (" + format_value(grid.resolution()) +
-                       " m, " + format_value(grid.band()) + " m); grids merge only on the same grid");
-    grid.merge(other);
-  }
+  for (std::size_t k = 1; k < inputs.size(); ++k) io::merge_elevation_geotiff(grid, inputs[k], inputs[0]);
   // The GeoTIFF's bands are compressed on `threads` threads; the file is the same whatever the count.
   const auto share = WorkShare::threads(threads_or_cores(threads));
   io::write_elevation_geotiff(grid, output, 1, *share);

@@ -83,6 +83,8 @@ class ElevationGrid {
   void add(const ElevationSample* s, std::size_t n);
   /// Merges another grid (same resolution and band; extents may differ): exact and order-free.
   void merge(const ElevationGrid& other);
+  /// Merges one cell of another grid of the same resolution and band (what merge() does for each).
+  void merge_cell(std::int64_t ix, std::int64_t iy, const ElevationCell& c) { merge_cell_at(key(ix, iy), c); }
   /// Sets a cell's state directly (reading a grid back from a GeoTIFF).
   void set_cell(std::int64_t ix, std::int64_t iy, const ElevationCell& c);
 
@@ -117,6 +119,7 @@ class ElevationGrid {
   static std::int64_t unkey_y(std::uint64_t k) { return static_cast<std::int64_t>(k & kMask) - kOffset; }
   /// The cell of `k`, appended empty if absent.
   ElevationCell& touch(std::uint64_t k);
+  void merge_cell_at(std::uint64_t k, const ElevationCell& c);
   ElevationCell& cell(std::size_t i) { return chunks_[i / kChunk].cells[i % kChunk]; }
   const ElevationCell& cell(std::size_t i) const { return chunks_[i / kChunk].cells[i % kChunk]; }
 

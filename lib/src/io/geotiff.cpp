@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "pcdp/errors.hpp"
+#include "pcdp/options.hpp"
 #include "tiff_reader.hpp"
 #include "tiff_writer.hpp"
 
@@ -120,63 +121,110 @@ std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string
   return surfaces;
 }
 
-ElevationGrid read_elevation_geotiff(const std::string& path) {
-  detail::FloatTiffData t = detail::read_float_tiff(path);
-  std::string r, bnd, sup;
-  for (const auto& [name, value] : detail::gdal_metadata_items(t.gdal_metadata)) {
-    if (name == "PCDP_RESOLUTION") r = value;
-    if (name == "PCDP_BAND") bnd = value;
-    if (name == "PCDP_MIN_SUPPORT") sup = value;
-  }
-  if (r.empty() || bnd.empty() || sup.empty() || t.bands != kBands || !t.georeferenced)
-    throw InputError(path + ": not an elevation grid of pcd_pipeline (needs its " + std::to_string(kBands) +
-                     " bands, its georeferencing and PCDP_* metadata to merge)");
-  const double res = std::atof(r.c_str()), band = std::atof(bnd.c_str());
-  const long support = std::atol(sup.c_str());
-  if (!(res > 0) || !(band > 0) || support < 1 || support > 1000000)
-    throw InputError(path + ": PCDP_RESOLUTION " + r + ", PCDP_BAND " + bnd + " or PCDP_MIN_SUPPORT " + sup +
-                     " is not a positive number");
-  ElevationGrid grid(res, band, static_cast<std::uint32_t>(support));
-  // The raster's north-west corner, as GDAL's geotransform has it (pixel-is-area tie point).
-  const double x0 = t.tiepoint[3] - t.tiepoint[0] * t.pixel_scale[0], y0 = t.tiepoint[4] + t.tiepoint[1] * t.pixel_scale[1];
-  const int nx = t.width, ny = t.height;
-  constexpr double kMaxIndex = 4.5e15;  // cell indices stay exact in a double, and far from overflow
-  if (!(std::fabs(x0 / res) < kMaxIndex) || !(std::fabs(y0 / res) < kMaxIndex))
-    throw InputError(path + ": the raster's corner (" + std::to_string(x0) + ", " + std::to_string(y0) +
-                     ") is not a finite position on its grid");
-  const std::int64_t ix0 = std::llround(x0 / res), iy1 = std::llround(y0 / res) - 1;
-  const std::vector<std::vector<float>>& bands = t.planes;
-  // Counts, pass counts and band indices are whole numbers in the file; anything else is damage
-  // (and would not convert to an integer).
-  const auto whole = [&](float v, double lo, double hi, const char* what, int row, int col) {
-    if (!(v >= lo && v <= hi) || v != std::floor(v))
-      throw InputError(path + ": pixel (" + std::to_string(col) + ", " + std::to_string(row) + "): " + what + " " +
-                       std::to_string(v) + " is not a whole number in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
-    return static_cast<double>(v);
-  };
-  constexpr double kMaxCount = 4294967295.0, kMaxBand = 2147483647.0;
-  for (int row = 0; row < ny; ++row)
-    for (int col = 0; col < nx; ++col) {
-      const std::size_t i = static_cast<std::size_t>(row) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(col);
-      if (std::isnan(bands[2][i]) || bands[2][i] <= 0) continue;
-      ElevationCell c;
-      c.count = static_cast<std::uint32_t>(whole(bands[2][i], 1, kMaxCount, "count", row, col));
-      c.zmin = bands[3][i];
-      c.zmax = bands[4][i];
-      c.passes = static_cast<std::uint32_t>(whole(bands[5][i], 0, kMaxCount, "passes", row, col));
-      for (int k = 0; k < ElevationCell::kBands; ++k) {
-        const std::size_t b0 = static_cast<std::size_t>(kFixed + kPerBand * k);
-        if (std::isnan(bands[b0 + 3][i]) || bands[b0 + 3][i] <= 0) continue;
-        HeightBand hb;
-        hb.index = static_cast<std::int32_t>(whole(bands[b0][i], -kMaxBand - 1, kMaxBand, "height band index", row, col));
-        hb.w = bands[b0 + 1][i];
-        hb.wz = hb.w * static_cast<double>(bands[b0 + 2][i]);
-        hb.count = static_cast<std::uint32_t>(whole(bands[b0 + 3][i], 1, kMaxCount, "height band count", row, col));
-        c.bands[static_cast<std::size_t>(k)] = hb;
-      }
-      grid.set_cell(ix0 + col, iy1 - row, c);
+namespace {
+/// An elevation grid's file opened for reading: its grid parameters checked, its cells read a
+/// strip of rows at a time (FloatTiffRows), so the memory it takes is a strip of each band.
+class GridFile {
+ public:
+  explicit GridFile(const std::string& path) : path_(path), tiff_(path) {
+    const detail::FloatTiffInfo& t = tiff_.info();
+    std::string r, bnd, sup;
+    for (const auto& [name, value] : detail::gdal_metadata_items(t.gdal_metadata)) {
+      if (name == "PCDP_RESOLUTION") r = value;
+      if (name == "PCDP_BAND") bnd = value;
+      if (name == "PCDP_MIN_SUPPORT") sup = value;
     }
+    if (r.empty() || bnd.empty() || sup.empty() || t.bands != kBands || !t.georeferenced)
+      throw InputError(path + ": not an elevation grid of pcd_pipeline (needs its " + std::to_string(kBands) +
+                       " bands, its georeferencing and PCDP_* metadata to merge)");
+    res_ = std::atof(r.c_str());
+    band_ = std::atof(bnd.c_str());
+    const long support = std::atol(sup.c_str());
+    if (!(res_ > 0) || !(band_ > 0) || support < 1 || support > 1000000)
+      throw InputError(path + ": PCDP_RESOLUTION " + r + ", PCDP_BAND " + bnd + " or PCDP_MIN_SUPPORT " + sup +
+                       " is not a positive number");
+    support_ = static_cast<std::uint32_t>(support);
+    // The raster's north-west corner, as GDAL's geotransform has it (pixel-is-area tie point).
+    const double x0 = t.tiepoint[3] - t.tiepoint[0] * t.pixel_scale[0], y0 = t.tiepoint[4] + t.tiepoint[1] * t.pixel_scale[1];
+    constexpr double kMaxIndex = 4.5e15;  // cell indices stay exact in a double, and far from overflow
+    if (!(std::fabs(x0 / res_) < kMaxIndex) || !(std::fabs(y0 / res_) < kMaxIndex))
+      throw InputError(path + ": the raster's corner (" + std::to_string(x0) + ", " + std::to_string(y0) +
+                       ") is not a finite position on its grid");
+    ix0_ = std::llround(x0 / res_);
+    iy1_ = std::llround(y0 / res_) - 1;
+  }
+
+  double resolution() const { return res_; }
+  double band() const { return band_; }
+  std::uint32_t min_support() const { return support_; }
+
+  /// f(ix, iy, cell) for every cell that holds points, row by row from the north.
+  template <typename F>
+  void for_each_cell(F f) {
+    const int nx = tiff_.info().width;
+    // Counts, pass counts and band indices are whole numbers in the file; anything else is
+    // damage (and would not convert to an integer).
+    const auto whole = [&](float v, double lo, double hi, const char* what, int row, int col) {
+      if (!(v >= lo && v <= hi) || v != std::floor(v))
+        throw InputError(path_ + ": pixel (" + std::to_string(col) + ", " + std::to_string(row) + "): " + what + " " +
+                         std::to_string(v) + " is not a whole number in [" + std::to_string(lo) + ", " +
+                         std::to_string(hi) + "]");
+      return static_cast<double>(v);
+    };
+    constexpr double kMaxCount = 4294967295.0, kMaxBand = 2147483647.0;
+    std::vector<std::vector<float>> bands;
+    int first = 0, rows = 0;
+    while (tiff_.next(first, rows, bands))
+      for (int r = 0; r < rows; ++r)
+        for (int col = 0; col < nx; ++col) {
+          const int row = first + r;
+          const std::size_t i = static_cast<std::size_t>(r) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(col);
+          if (std::isnan(bands[2][i]) || bands[2][i] <= 0) continue;
+          ElevationCell c;
+          c.count = static_cast<std::uint32_t>(whole(bands[2][i], 1, kMaxCount, "count", row, col));
+          c.zmin = bands[3][i];
+          c.zmax = bands[4][i];
+          c.passes = static_cast<std::uint32_t>(whole(bands[5][i], 0, kMaxCount, "passes", row, col));
+          for (int k = 0; k < ElevationCell::kBands; ++k) {
+            const std::size_t b0 = static_cast<std::size_t>(kFixed + kPerBand * k);
+            if (std::isnan(bands[b0 + 3][i]) || bands[b0 + 3][i] <= 0) continue;
+            HeightBand hb;
+            hb.index = static_cast<std::int32_t>(whole(bands[b0][i], -kMaxBand - 1, kMaxBand, "height band index", row, col));
+            hb.w = bands[b0 + 1][i];
+            hb.wz = hb.w * static_cast<double>(bands[b0 + 2][i]);
+            hb.count = static_cast<std::uint32_t>(whole(bands[b0 + 3][i], 1, kMaxCount, "height band count", row, col));
+            c.bands[static_cast<std::size_t>(k)] = hb;
+          }
+          f(ix0_ + col, iy1_ - row, c);
+        }
+  }
+
+ private:
+  std::string path_;
+  detail::FloatTiffRows tiff_;
+  double res_ = 0, band_ = 0;
+  std::uint32_t support_ = 0;
+  std::int64_t ix0_ = 0, iy1_ = 0;
+};
+}  // namespace
+
+ElevationGrid read_elevation_geotiff(const std::string& path) {
+  GridFile file(path);
+  ElevationGrid grid(file.resolution(), file.band(), file.min_support());
+  file.for_each_cell([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) { grid.set_cell(ix, iy, c); });
   return grid;
+}
+
+void merge_elevation_geotiff(ElevationGrid& grid, const std::string& path, const std::string& grid_name) {
+  GridFile file(path);
+  // The same tests as ElevationGrid::merge, before any cell is read: a mismatch leaves `grid` as it was.
+  if (std::fabs(file.resolution() - grid.resolution()) > 1e-9 || std::fabs(file.band() - grid.band()) > 1e-9 ||
+      file.min_support() != grid.min_support())
+    throw InputError(path + ": resolution " + format_value(file.resolution()) + " m, band " + format_value(file.band()) +
+                     " m and min_support " + std::to_string(file.min_support()) + " differ from " + grid_name + "'s (" +
+                     format_value(grid.resolution()) + " m, " + format_value(grid.band()) + " m, " +
+                     std::to_string(grid.min_support()) + "); grids merge only on the same grid");
+  file.for_each_cell([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) { grid.merge_cell(ix, iy, c); });
 }
 
 // ---- the picture -----------------------------------------------------------------------------

@@ -11,22 +11,49 @@
 // hostile file cannot make it read out of bounds or allocate without limit.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
 
 namespace pcdp::io::detail {
 
-struct FloatTiffData {
+/// What the directory says of the raster.
+struct FloatTiffInfo {
   int width = 0, height = 0, bands = 0;
   double pixel_scale[3] = {0, 0, 0};        ///< ModelPixelScaleTag (33550); zeros: absent
   double tiepoint[6] = {0, 0, 0, 0, 0, 0};  ///< ModelTiepointTag (33922), the first tie point
   bool georeferenced = false;               ///< both tags were present
   std::string gdal_metadata;                ///< GDAL_METADATA (42112) XML; empty: absent
-  std::vector<std::vector<float>> planes;   ///< one per band, width * height, row 0 first
 };
 
-/// Reads the whole raster. Throws InputError naming `path` and what is wrong.
+/// The raster a strip of rows at a time, every band: the memory it holds is one strip of each
+/// band (and the directory), not the raster, so a caller can convert rows as they come.
+class FloatTiffRows {
+ public:
+  /// Opens `path` and reads and checks its directory. Throws InputError naming `path`.
+  explicit FloatTiffRows(const std::string& path);
+  ~FloatTiffRows();
+  FloatTiffRows(const FloatTiffRows&) = delete;
+  FloatTiffRows& operator=(const FloatTiffRows&) = delete;
+
+  const FloatTiffInfo& info() const;
+  /// The next strip of rows, top first: rows `first` .. `first + count - 1`, band b's in
+  /// `rows[b]` (count * width floats, row `first` first). False after the last strip. Throws
+  /// InputError naming the file and the strip when a strip is damaged.
+  bool next(int& first, int& count, std::vector<std::vector<float>>& rows);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+struct FloatTiffData : FloatTiffInfo {
+  std::vector<std::vector<float>> planes;  ///< one per band, width * height, row 0 first
+};
+
+/// Reads the whole raster (FloatTiffRows, every strip). Throws InputError naming `path` and
+/// what is wrong.
 FloatTiffData read_float_tiff(const std::string& path);
 
 /// The dataset items (no `sample` attribute) of GDAL_METADATA XML, name and value, the value

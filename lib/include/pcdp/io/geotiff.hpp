@@ -26,6 +26,13 @@ std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string
 /// Throws InputError when the file is missing, not a GeoTIFF of pcd_pipeline, or lacks the
 /// merge bands.
 ElevationGrid read_elevation_geotiff(const std::string& path);
+/// Merges the grid in `path` into `grid`: the same as grid.merge(read_elevation_geotiff(path)),
+/// but read a strip of rows at a time into `grid`, so it takes no second grid's memory. Throws
+/// InputError as read_elevation_geotiff does, or when the file's resolution, band or min_support
+/// differ from `grid`'s (checked before any cell is read; the message calls `grid` `grid_name`).
+/// A damaged file found mid-way leaves the cells read so far merged: discard `grid` then.
+void merge_elevation_geotiff(ElevationGrid& grid, const std::string& path,
+                             const std::string& grid_name = "the grid");
 
 /// The picture a person reads: elevation in colour (perceptual ramp) with hillshade, unobserved
 /// cells in light grey, a colour bar with heights and a scale bar. 8-bit RGB PNG through libpng's
