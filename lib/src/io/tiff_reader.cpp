@@ -66,16 +66,19 @@ struct FloatTiffRows::Impl {
 
   [[noreturn]] void fail(const std::string& what) const { throw InputError(path + ": " + what); }
 
-  /// `n` bytes at `off` into `out`, or an error naming `what`.
-  void read(std::uint64_t off, std::uint64_t n, const std::string& what, std::uint8_t* out) {
+  /// An error naming `what` unless the file holds `n` bytes at `off`.
+  void check_within(std::uint64_t off, std::uint64_t n, const std::string& what) const {
     if (off > size || n > size - off)
       fail(what + " lies beyond the end of the file (" + std::to_string(size) + " bytes)");
+  }
+  /// `n` bytes at `off` into `out`, or an error naming `what`.
+  void read(std::uint64_t off, std::uint64_t n, const std::string& what, std::uint8_t* out) {
+    check_within(off, n, what);
     in.seekg(static_cast<std::streamoff>(off));
     if (n && !in.read(reinterpret_cast<char*>(out), static_cast<std::streamsize>(n))) fail("cannot read " + what);
   }
   std::vector<std::uint8_t> read(std::uint64_t off, std::uint64_t n, const std::string& what) {
-    if (off > size || n > size - off)
-      fail(what + " lies beyond the end of the file (" + std::to_string(size) + " bytes)");
+    check_within(off, n, what);  // before allocating n bytes
     std::vector<std::uint8_t> b(n);
     read(off, n, what, b.data());
     return b;
@@ -120,8 +123,9 @@ struct FloatTiffRows::Impl {
 
   /// The integers of an entry (SHORT, LONG or LONG8).
   std::vector<std::uint64_t> ints(std::uint16_t tag, const Entry& e) const {
-    const int unit = e.type == kTiffShort ? 2 : e.type == kTiffLong ? 4 : e.type == kTiffLong8 ? 8 : 0;
-    if (unit == 0) fail("tag " + std::to_string(tag) + " has field type " + std::to_string(e.type) + ", not an integer type");
+    if (e.type != kTiffShort && e.type != kTiffLong && e.type != kTiffLong8)
+      fail("tag " + std::to_string(tag) + " has field type " + std::to_string(e.type) + ", not an integer type");
+    const int unit = tiff_type_bytes(e.type);
     std::vector<std::uint64_t> v(e.count);
     for (std::uint64_t i = 0; i < e.count; ++i) v[i] = le(e.value.data() + i * unit, unit);
     return v;
@@ -220,8 +224,7 @@ struct FloatTiffRows::Impl {
   void decode(std::uint64_t s, std::uint64_t rows, std::uint64_t per_pixel) {
     const std::uint64_t need = rows * w * per_pixel * 4;
     const std::string what = "strip " + std::to_string(s);
-    if (offsets[s] > size || counts[s] > size - offsets[s])
-      fail(what + " lies beyond the end of the file (" + std::to_string(size) + " bytes)");
+    check_within(offsets[s], counts[s], what);
     if (compression == 1) {
       if (counts[s] < need) fail(what + " holds " + std::to_string(counts[s]) + " bytes, not " + std::to_string(need));
       read(offsets[s], need, what, reinterpret_cast<std::uint8_t*>(buf.data()));
