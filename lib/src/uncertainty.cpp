@@ -109,12 +109,7 @@ Eigen::Matrix3d point_covariance_fast(double r, double cn, double sn, double ce,
   return C;
 }
 
-CovarianceBatch::CovarianceBatch(RpyOrder order, const PointSigmas& s) : xyz_(order == RpyOrder::kXyz) {
-  // Padding lanes (a partly filled batch is computed whole) hold finite inputs with a defined
-  // middle axis; their results are never written out.
-  for (auto& row : in_)
-    for (float& v : row) v = 0.0f;
-  for (std::size_t j = 0; j < kCapacity; ++j) in_[kIx][j] = in_[kIz][j] = 1.0f;
+CovarianceLanes::CovarianceLanes(RpyOrder order, const PointSigmas& s) : xyz_(order == RpyOrder::kXyz) {
   var_range_ = static_cast<float>(s.range * s.range);
   var_bearing_ = static_cast<float>(s.bearing * s.bearing);
   // roll outer (e_x) and yaw inner for xyz; roll inner and yaw outer (e_z) for zyx.
@@ -124,48 +119,51 @@ CovarianceBatch::CovarianceBatch(RpyOrder order, const PointSigmas& s) : xyz_(or
   for (int k = 0; k < 3; ++k) var_pos_[k] = static_cast<float>(s.position[k] * s.position[k]);
 }
 
-void CovarianceBatch::compute() {
+void CovarianceLanes::compute(const float* in, float* res, std::size_t stride, std::size_t n) const {
   // point_covariance_fast's sum of rank-1 terms, lane by lane. The loop runs over whole groups of
-  // 16 lanes, so every return goes through the vector body (none through a scalar remainder).
-  const std::size_t n = (n_ + 15) / 16 * 16;
+  // 16 lanes, so every lane goes through the vector body (none through a scalar remainder).
+  n = (n + kGroup - 1) / kGroup * kGroup;
   const float vr = var_range_, vb = var_bearing_, vo = var_outer_, vm = var_middle_, vi = var_inner_;
+  const float vpx = var_pos_[0], vpy = var_pos_[1], vpz = var_pos_[2];  // the position columns are the identity
   const float ox = xyz_ ? 1.0f : 0.0f, oz = xyz_ ? 0.0f : 1.0f;  // the outer axis: e_x or e_z
+  const auto at = [&](int k) { return in + static_cast<std::size_t>(k) * stride; };
+  const float *pr = at(kR), *pcn = at(kCn), *psn = at(kSn), *pce = at(kCe), *pse = at(kSe), *pvn = at(kVarNod);
+  const float *p00 = at(kR00), *p10 = at(kR10), *p20 = at(kR20), *p01 = at(kR01), *p11 = at(kR11), *p21 = at(kR21);
+  const float *p02 = at(kR02), *p12 = at(kR12), *p22 = at(kR22);
+  const float *pix = at(kIx), *piy = at(kIy), *piz = at(kIz), *ppx = at(kPx), *ppy = at(kPy), *ppz = at(kPz);
+  float *r0 = res, *r1 = res + stride, *r2 = res + 2 * stride, *r3 = res + 3 * stride, *r4 = res + 4 * stride,
+        *r5 = res + 5 * stride;
+  // The rows never overlap (in and res are distinct arrays): no alias checks needed. (GCC did
+  // not vectorise this loop with the pointers declared __restrict.)
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC ivdep
+#endif
   for (std::size_t j = 0; j < n; ++j) {
-    const float r = in_[kR][j], cn = in_[kCn][j], sn = in_[kSn][j], ce = in_[kCe][j], se = in_[kSe][j];
-    const float c0x = in_[kR00][j], c0y = in_[kR10][j], c0z = in_[kR20][j];
-    const float c1x = in_[kR01][j], c1y = in_[kR11][j], c1z = in_[kR21][j];
-    const float c2x = in_[kR02][j], c2y = in_[kR12][j], c2z = in_[kR22][j];
+    const float r = pr[j], cn = pcn[j], sn = psn[j], ce = pce[j], se = pse[j];
+    const float c0x = p00[j], c0y = p10[j], c0z = p20[j];
+    const float c1x = p01[j], c1y = p11[j], c1z = p21[j];
+    const float c2x = p02[j], c2y = p12[j], c2z = p22[j];
     const float wx = ce * c0x + se * c2x, wy = ce * c0y + se * c2y, wz = ce * c0z + se * c2z;
     const float ux = cn * wx + sn * c1x, uy = cn * wy + sn * c1y, uz = cn * wz + sn * c1z;
     const float bx = cn * c1x - sn * wx, by = cn * c1y - sn * wy, bz = cn * c1z - sn * wz;
     const float ex = ce * c2x - se * c0x, ey = ce * c2y - se * c0y, ez = ce * c2z - se * c0z;
-    const float r2 = r * r;
-    const float v_b = r2 * vb, v_e = r2 * cn * cn * in_[kVarNod][j];
-    const float ix = in_[kIx][j], iy = in_[kIy][j], iz = in_[kIz][j];
-    const float px = in_[kPx][j], py = in_[kPy][j], pz = in_[kPz][j];
+    const float rr = r * r;
+    const float v_b = rr * vb, v_e = rr * cn * cn * pvn[j];
+    const float ix = pix[j], iy = piy[j], iz = piz[j];
+    const float px = ppx[j], py = ppy[j], pz = ppz[j];
     // outer x Rp; middle = outer x inner (not normalised: its variance is divided by |middle|^2).
     const float jox = -oz * py, joy = oz * px - ox * pz, joz = ox * py;
     const float mx = -oz * iy, my = oz * ix - ox * iz, mz = ox * iy;
     const float v_m = vm / (mx * mx + my * my + mz * mz);
     const float jmx = my * pz - mz * py, jmy = mz * px - mx * pz, jmz = mx * py - my * px;
     const float jix = iy * pz - iz * py, jiy = iz * px - ix * pz, jiz = ix * py - iy * px;
-    res_[0][j] = vr * ux * ux + v_b * bx * bx + v_e * ex * ex + vo * jox * jox + v_m * jmx * jmx + vi * jix * jix;
-    res_[1][j] = vr * ux * uy + v_b * bx * by + v_e * ex * ey + vo * jox * joy + v_m * jmx * jmy + vi * jix * jiy;
-    res_[2][j] = vr * ux * uz + v_b * bx * bz + v_e * ex * ez + vo * jox * joz + v_m * jmx * jmz + vi * jix * jiz;
-    res_[3][j] = vr * uy * uy + v_b * by * by + v_e * ey * ey + vo * joy * joy + v_m * jmy * jmy + vi * jiy * jiy;
-    res_[4][j] = vr * uy * uz + v_b * by * bz + v_e * ey * ez + vo * joy * joz + v_m * jmy * jmz + vi * jiy * jiz;
-    res_[5][j] = vr * uz * uz + v_b * bz * bz + v_e * ez * ez + vo * joz * joz + v_m * jmz * jmz + vi * jiz * jiz;
+    r0[j] = (vr * ux * ux + v_b * bx * bx + v_e * ex * ex + vo * jox * jox + v_m * jmx * jmx + vi * jix * jix) + vpx;
+    r1[j] = vr * ux * uy + v_b * bx * by + v_e * ex * ey + vo * jox * joy + v_m * jmx * jmy + vi * jix * jiy;
+    r2[j] = vr * ux * uz + v_b * bx * bz + v_e * ex * ez + vo * jox * joz + v_m * jmx * jmz + vi * jix * jiz;
+    r3[j] = (vr * uy * uy + v_b * by * by + v_e * ey * ey + vo * joy * joy + v_m * jmy * jmy + vi * jiy * jiy) + vpy;
+    r4[j] = vr * uy * uz + v_b * by * bz + v_e * ey * ez + vo * joy * joz + v_m * jmy * jmz + vi * jiy * jiz;
+    r5[j] = (vr * uz * uz + v_b * bz * bz + v_e * ez * ez + vo * joz * joz + v_m * jmz * jmz + vi * jiz * jiz) + vpz;
   }
-  for (std::size_t j = 0; j < n_; ++j) {
-    float* c = out_[j];
-    c[0] = res_[0][j] + var_pos_[0];  // the position columns are the identity
-    c[1] = res_[1][j];
-    c[2] = res_[2][j];
-    c[3] = res_[3][j] + var_pos_[1];
-    c[4] = res_[4][j];
-    c[5] = res_[5][j] + var_pos_[2];
-  }
-  n_ = 0;
 }
 
 }  // namespace pcdp

@@ -31,6 +31,17 @@ Errors compare(const Pass& p, const sim::SimPass& truth) {
   return out;
 }
 
+// The sigmas register should use for a return (without encoder latency: no rate term).
+PointSigmas expected_sigmas(const SensorParams& sensor, const PoseSigma& ps) {
+  PointSigmas s;
+  s.range = sensor.range_k * sensor.range_sigma;
+  s.bearing = quantization_sigma(sensor.bearing_resolution);
+  s.nod = quantization_sigma(sensor.encoder_resolution);
+  s.position = Eigen::Vector3d::Constant(ps.position);
+  s.rpy = Eigen::Vector3d::Constant(ps.rpy);
+  return s;
+}
+
 struct Fixture {
   sim::SimConfig cfg = test::small_sim_config();
   sim::SimResult run;
@@ -178,12 +189,7 @@ TEST(Register, StoredCovarianceIsTheAnglePathCovarianceAtEachReturnsOwnPoseAndNo
     Pass p = f.run.passes[0].pass;
     register_pass(p, RegisterParams{}, f.sensor, f.T_V_N, &f.poses, ps, order);
     const EncoderTrack track = encoder_track(p, f.sensor.encoder_latency);
-    PointSigmas s;
-    s.range = f.sensor.range_k * f.sensor.range_sigma;
-    s.bearing = quantization_sigma(f.sensor.bearing_resolution);
-    s.nod = quantization_sigma(f.sensor.encoder_resolution);
-    s.position = Eigen::Vector3d::Constant(ps.position);
-    s.rpy = Eigen::Vector3d::Constant(ps.rpy);
+    const PointSigmas s = expected_sigmas(f.sensor, ps);
     std::size_t checked = 0, hint = 0, enc_hint = 0;
     for (std::size_t i = 0; i < p.size(); i += 7) {
       if (!std::isfinite(p.x[i])) continue;
@@ -200,4 +206,91 @@ TEST(Register, StoredCovarianceIsTheAnglePathCovarianceAtEachReturnsOwnPoseAndNo
     }
     EXPECT_GT(checked, p.size() / 20);
   }
+}
+
+namespace {
+// Where register put return i: T_M_V(stamp) T_V_N p_N, from PoseTrack::at (slerp) and std::sin/cos.
+// (The nod in double from the encoder track: nod_at_return is stored as float.)
+Eigen::Vector3d expected_point(const Pass& p, std::size_t i, const PoseTrack& poses, const Eigen::Isometry3d& T_V_N,
+                               const SensorParams& sensor, const EncoderTrack& enc, std::size_t& hint,
+                               std::size_t& enc_hint) {
+  const Eigen::Isometry3d T_M_N = poses.at(p.stamp[i], hint) * T_V_N;
+  return T_M_N * nod_frame_point(sensor.calibrated_range(p.range[i]), p.bearing[i], enc.angle_at(p.stamp[i], enc_hint));
+}
+}  // namespace
+
+TEST(Register, LargeAndSmallTurnsRegisterAsTheInterpolatedPose) {
+  // Three poses: the first half of the pass turns 0.6 rad in yaw and 0.2 in pitch (beyond
+  // SegmentMotion::kSmallTurn for all but its first returns: the full sine), the second half
+  // turns 0.5 mrad (the inline three-term series, which would be millimetres off at 0.6 rad).
+  // register's chunks then hold runs of both kinds, split mid-chunk. Every point and origin must
+  // be the slerped pose's, to rounding.
+  Fixture f;
+  Pass p = f.run.passes[0].pass;
+  PoseSample a, b, c;
+  a.stamp = p.stamp.front() - 1e-4;
+  b.stamp = p.stamp[p.size() / 2];
+  c.stamp = p.stamp.back() + 1e-4;
+  a.position = Eigen::Vector3d(1.0, -2.0, 0.3);
+  b.position = Eigen::Vector3d(3.0, 1.0, 0.1);
+  c.position = Eigen::Vector3d(3.5, 1.2, 0.1);
+  b.orientation = Eigen::Quaterniond(rpy_to_matrix({0.0, 0.2, 0.6}, RpyOrder::kXyz));
+  c.orientation = Eigen::Quaterniond(rpy_to_matrix({0.0, 0.2, 0.6005}, RpyOrder::kXyz));
+  const PoseTrack track({a, b, c});
+  ASSERT_GT(track.motion(0).angle, 0.5);
+  ASSERT_LT(track.motion(1).angle, SegmentMotion::kSmallTurn);
+  register_pass(p, RegisterParams{}, f.sensor, f.T_V_N, &track);
+  const EncoderTrack enc = encoder_track(p, f.sensor.encoder_latency);
+  std::size_t small = 0, large = 0, hint = 0, enc_hint = 0;
+  double worst = 0.0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    if (!std::isfinite(p.x[i])) continue;
+    const std::size_t k = track.bracket(p.stamp[i], 0);
+    const SegmentMotion m = track.motion(k);
+    const double turn = std::fabs((p.stamp[i] - m.stamp0) / m.duration * m.angle);
+    (turn <= SegmentMotion::kSmallTurn ? small : large) += 1;
+    const Eigen::Vector3d want = expected_point(p, i, track, f.T_V_N, f.sensor, enc, hint, enc_hint);
+    worst = std::max(worst, (Eigen::Vector3d(p.x[i], p.y[i], p.z[i]) - want).norm());
+    const Eigen::Vector3d o = (track.at(p.stamp[i], hint) * f.T_V_N).translation();
+    worst = std::max(worst, (Eigen::Vector3d(p.ox[i], p.oy[i], p.oz[i]) - o).norm());
+  }
+  EXPECT_GT(small, p.size() / 4);
+  EXPECT_GT(large, p.size() / 4);
+  EXPECT_LT(worst, 1e-9);  // metres; a wrong weight is off by millimetres or more
+}
+
+TEST(Register, CovarianceAtGimbalLockTakesTheAnglePathAndStaysFinite) {
+  // A vehicle pitched straight up (xyz order, pitch 90 degrees): the middle pose axis is
+  // undefined, the vectorised kernel cannot be used, and register must fall back to the angle
+  // path for those returns: the covariance is point_covariance's, finite, at every return.
+  Fixture f;
+  Pass p = f.run.passes[0].pass;
+  const Eigen::Quaterniond up(rpy_to_matrix({0.2, 1.5707963267948966, 0.1}, RpyOrder::kXyz));
+  PoseSample a, b;
+  a.stamp = p.stamp.front() - 1.0;
+  b.stamp = p.stamp.back() + 1.0;
+  a.orientation = b.orientation = up;
+  b.position = Eigen::Vector3d(0.5, 0.0, 0.0);
+  const PoseTrack track({a, b});
+  PoseSigma ps;
+  ps.position = 0.01;
+  ps.rpy = 0.002;
+  register_pass(p, RegisterParams{true, 0.0}, f.sensor, f.T_V_N, &track, ps, RpyOrder::kXyz);
+  const EncoderTrack enc = encoder_track(p, f.sensor.encoder_latency);
+  const PointSigmas s = expected_sigmas(f.sensor, ps);
+  std::size_t checked = 0, hint = 0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    if (!std::isfinite(p.x[i])) continue;
+    const double eta = enc.angle_at(p.stamp[i], hint);
+    const Eigen::Matrix3d C = point_covariance(f.sensor.calibrated_range(p.range[i]), p.bearing[i], eta, f.T_V_N,
+                                               matrix_to_rpy(up.toRotationMatrix(), RpyOrder::kXyz), RpyOrder::kXyz, s);
+    const float* c = &p.cov[6 * i];
+    const double want[6] = {C(0, 0), C(0, 1), C(0, 2), C(1, 1), C(1, 2), C(2, 2)};
+    for (int k = 0; k < 6; ++k) {
+      ASSERT_TRUE(std::isfinite(c[k])) << "return " << i;
+      ASSERT_NEAR(c[k], want[k], 1e-6 * C.norm()) << "return " << i << " entry " << k;
+    }
+    ++checked;
+  }
+  EXPECT_GT(checked, p.size() / 2);
 }

@@ -119,10 +119,12 @@ TEST(Uncertainty, FastCovarianceEqualsTheAnglePath) {
   EXPECT_TRUE(c.allFinite());
 }
 
-TEST(Uncertainty, CovarianceBatchEqualsTheAnglePath) {
-  // The batched single-precision kernel against point_covariance (double, roll/pitch/yaw), on
-  // random returns, poses and mounts, both RPY orders, more returns than one batch holds (so
-  // full, partial and reused batches all occur); each return's result lands where it was asked.
+TEST(Uncertainty, CovarianceLanesEqualTheAnglePath) {
+  // The single-precision lane kernel against point_covariance (double, roll/pitch/yaw), on
+  // random returns, poses and mounts, both RPY orders, a lane count that is not a whole number of
+  // groups (the lanes past it are computed and must not be written); each lane's result lands in
+  // its own column.
+  using L = CovarianceLanes;
   std::mt19937 rng(8);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   for (RpyOrder order : {RpyOrder::kXyz, RpyOrder::kZyx}) {
@@ -131,41 +133,43 @@ TEST(Uncertainty, CovarianceBatchEqualsTheAnglePath) {
     s.bearing = 0.0025;
     s.position = Eigen::Vector3d(0.01, 0.02, 0.03);
     s.rpy = Eigen::Vector3d(0.001, 0.002, 0.003);
-    CovarianceBatch batch(order, s);
-    const std::size_t n = 2 * CovarianceBatch::kCapacity + 37;
-    std::vector<float> got(6 * n, -1.0f);
+    const L lanes(order, s);
+    const std::size_t n = 5 * L::kGroup + 7, stride = 6 * L::kGroup + 3;
+    std::vector<float> in(L::kInputs * stride, 0.0f), res(6 * stride, -1.0f);
     std::vector<Eigen::Matrix3d> want(n);
-    for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t j = 0; j < n; ++j) {
       const Rpy rpy{1.5 * u(rng), 1.4 * u(rng), 3.1 * u(rng)};
       const Eigen::Isometry3d T_V_N = make_transform(Eigen::Vector3d(u(rng), u(rng), 1 + u(rng)), Rpy{0.3 * u(rng), 0.3 * u(rng), 0.3 * u(rng)}, order);
       const double r = 1.0 + 20.0 * (u(rng) + 1.0), nu = 1.6 * u(rng), eta = 0.8 * u(rng);
       PointSigmas si = s;
       si.nod = 0.0004 * (1.5 + u(rng));
-      want[i] = point_covariance(r, nu, eta, T_V_N, rpy, order, si);
+      want[j] = point_covariance(r, nu, eta, T_V_N, rpy, order, si);
       const Eigen::Matrix3d R_MV = rpy_to_matrix(rpy, order), R_MN = R_MV * T_V_N.linear();
+      const Eigen::Vector3d inner = R_MV.col(inner_pose_axis(order));
       const Eigen::Vector3d Rp = R_MV * (T_V_N * nod_frame_point(r, nu, eta));
-      ASSERT_TRUE(batch.add(r, std::cos(nu), std::sin(nu), std::cos(eta), std::sin(eta), R_MN,
-                            R_MV.col(inner_pose_axis(order)), Rp, si.nod, &got[6 * i]));
-      if (batch.full()) batch.compute();
+      ASSERT_GE(lanes.middle_norm2(inner.x(), inner.y(), inner.z()), L::kGimbalLock);
+      const double v[L::kInputs] = {r, std::cos(nu), std::sin(nu), std::cos(eta), std::sin(eta), si.nod * si.nod,
+                                    R_MN(0, 0), R_MN(1, 0), R_MN(2, 0), R_MN(0, 1), R_MN(1, 1), R_MN(2, 1),
+                                    R_MN(0, 2), R_MN(1, 2), R_MN(2, 2), inner.x(), inner.y(), inner.z(),
+                                    Rp.x(), Rp.y(), Rp.z()};
+      for (int k = 0; k < L::kInputs; ++k) in[k * stride + j] = static_cast<float>(v[k]);
     }
-    batch.compute();
-    EXPECT_EQ(batch.size(), 0u);
+    lanes.compute(in.data(), res.data(), stride, n);
     double worst = 0.0;
-    for (std::size_t i = 0; i < n; ++i) {
-      const Eigen::Matrix3d& C = want[i];
+    for (std::size_t j = 0; j < n; ++j) {
+      const Eigen::Matrix3d& C = want[j];
       const double e[6] = {C(0, 0), C(0, 1), C(0, 2), C(1, 1), C(1, 2), C(2, 2)};
-      for (int k = 0; k < 6; ++k) worst = std::max(worst, std::fabs(got[6 * i + k] - e[k]) / C.norm());
+      for (int k = 0; k < 6; ++k) worst = std::max(worst, std::fabs(res[k * stride + j] - e[k]) / C.norm());
     }
     // Single precision: a few 1e-7 of the norm. A wrong axis, sign or variance is off by 1e-3 or more.
     EXPECT_LT(worst, 2e-6) << rpy_order_name(order);
+    // Whole groups are computed (6 groups here), nothing past them.
+    for (int k = 0; k < 6; ++k) EXPECT_EQ(res[k * stride + 6 * L::kGroup], -1.0f);
   }
-  // Gimbal lock is refused (the caller takes the angle path) and nothing is queued.
+  // Gimbal lock: the middle axis vanishes (the caller takes the angle path).
   PointSigmas s;
-  s.rpy = Eigen::Vector3d::Constant(0.001);
-  CovarianceBatch batch(RpyOrder::kXyz, s);
+  const L lanes(RpyOrder::kXyz, s);
   const Eigen::Matrix3d lock = rpy_to_matrix({0.2, 1.5707963267948966, 0.1}, RpyOrder::kXyz);
-  float out[6];
-  EXPECT_FALSE(batch.add(5, 1, 0, 1, 0, lock, lock.col(2), Eigen::Vector3d(5, 0, 0), 0.001, out));
-  EXPECT_EQ(batch.size(), 0u);
+  EXPECT_LT(lanes.middle_norm2(lock(0, 2), lock(1, 2), lock(2, 2)), L::kGimbalLock);
 }
 

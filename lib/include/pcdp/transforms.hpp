@@ -89,17 +89,22 @@ struct SegmentMotion {
     Weights w;
     w.s = (stamp - stamp0) * inv_duration;
     const double a = w.s * angle;
-    if (std::fabs(a) <= 1e-3) {
-      // Nearby poses (the usual case, inline: it runs for every return) turn by far less than
-      // kSmallAngle: three terms of each series suffice, the first omitted term being under
-      // 2e-22 of the result (a^6 / 7!, a^6 / 20160).
-      const double a2 = a * a;
-      w.sin_a = a * (1.0 - a2 * (1.0 / 6.0) * (1.0 - a2 * (1.0 / 20.0)));
-      w.vers_a = a2 * 0.5 * (1.0 - a2 * (1.0 / 12.0) * (1.0 - a2 * (1.0 / 30.0)));
+    if (std::fabs(a) <= kSmallTurn) {
+      small_turn(a, w.sin_a, w.vers_a);
       return w;
     }
     turn(a, w);
     return w;
+  }
+  /// Nearby poses (the usual case) turn by far less than kSmallAngle: up to this angle three
+  /// terms of each series suffice, the first omitted term being under 2e-22 of the result
+  /// (a^6 / 7!, a^6 / 20160).
+  static constexpr double kSmallTurn = 1e-3;
+  /// sin(a) and 1 - cos(a) for |a| <= kSmallTurn (inline: it runs for every return).
+  static void small_turn(double a, double& sin_a, double& vers_a) {
+    const double a2 = a * a;
+    sin_a = a * (1.0 - a2 * (1.0 / 6.0) * (1.0 - a2 * (1.0 / 20.0)));
+    vers_a = a2 * 0.5 * (1.0 - a2 * (1.0 / 12.0) * (1.0 - a2 * (1.0 / 30.0)));
   }
   /// sin(a) and 1 - cos(a) of a larger turn (weights' other cases).
   static void turn(double a, Weights& w);

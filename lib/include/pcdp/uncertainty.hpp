@@ -49,48 +49,32 @@ Eigen::Matrix3d point_covariance_fast(double r, double cos_nu, double sin_nu, do
 /// roll's (column 0) for zyx.
 inline int inner_pose_axis(RpyOrder order) { return order == RpyOrder::kXyz ? 2 : 0; }
 
-/// point_covariance_fast for many returns at once. add() takes what register has for a return
-/// (the range, the bearing's and nod's cosines and sines, R_MN, the inner pose axis
-/// R_MV.col(inner_pose_axis(order)), Rp, the nod's sigma) and where its six entries go (xx xy xz
-/// yy yz zz); compute() fills them all. The arithmetic runs over arrays in single precision (the
-/// covariance is stored as float), which the compiler turns into vector instructions (4 returns
-/// per instruction with SSE2), every return through the same instructions whatever its place in
-/// the batch. Equal to point_covariance to a few 1e-7 of the matrix's norm
-/// (tests/unit/test_uncertainty.cpp).
-class CovarianceBatch {
+/// point_covariance_fast for many returns at once, over arrays in single precision (the
+/// covariance is stored as float): lane j's inputs are in[k * stride + j] for each Input k (the
+/// range, the bearing's and nod's cosines and sines, the nod's variance, R_MN column by column,
+/// the inner pose axis R_MV.col(inner_pose_axis(order)) and Rp), and its six entries (xx xy xz yy
+/// yz zz, with the position variances) go to res[k * stride + j]. The compiler turns the loop
+/// into vector instructions (4 lanes per instruction with SSE2), every lane through the same
+/// instructions whatever its place. Equal to point_covariance to a few 1e-7 of the matrix's norm
+/// (tests/unit/test_uncertainty.cpp). A lane at gimbal lock (middle_norm2 under kGimbalLock)
+/// gives no usable result: take point_covariance_fast for that return.
+class CovarianceLanes {
  public:
-  static constexpr std::size_t kCapacity = 256;
-  /// `s.nod` is not used: each return brings its own.
-  CovarianceBatch(RpyOrder order, const PointSigmas& s);
-  /// Queues one return; false (nothing queued) at gimbal lock, where the middle pose axis is
-  /// undefined: use point_covariance_fast for that return.
-  /// (Inline: it runs for every return.)
-  bool add(double r, double cos_nu, double sin_nu, double cos_eta, double sin_eta, const Eigen::Matrix3d& R_MN,
-           const Eigen::Vector3d& inner, const Eigen::Vector3d& Rp, double sigma_nod, float* out) {
-    // The middle axis is outer x inner; its length is the sine of the angle between them.
-    const double m2 = xyz_ ? inner.y() * inner.y() + inner.z() * inner.z() : inner.x() * inner.x() + inner.y() * inner.y();
-    if (m2 < 1e-12) return false;  // point_covariance_fast's gimbal-lock test (|middle| < 1e-6)
-    const std::size_t j = n_++;
-    const double v[kInputs] = {r,          cos_nu,     sin_nu,     cos_eta,    sin_eta,    sigma_nod * sigma_nod,
-                               R_MN(0, 0), R_MN(1, 0), R_MN(2, 0), R_MN(0, 1), R_MN(1, 1), R_MN(2, 1),
-                               R_MN(0, 2), R_MN(1, 2), R_MN(2, 2), inner.x(),  inner.y(),  inner.z(),
-                               Rp.x(),     Rp.y(),     Rp.z()};
-    for (int k = 0; k < kInputs; ++k) in_[k][j] = static_cast<float>(v[k]);
-    out_[j] = out;
-    return true;
-  }
-  bool full() const { return n_ == kCapacity; }
-  std::size_t size() const { return n_; }
-  /// Computes and writes the queued returns' covariances, then empties the batch.
-  void compute();
-
- private:
   enum Input { kR, kCn, kSn, kCe, kSe, kVarNod, kR00, kR10, kR20, kR01, kR11, kR21, kR02, kR12, kR22,
                kIx, kIy, kIz, kPx, kPy, kPz, kInputs };
-  float in_[kInputs][kCapacity];
-  float res_[6][kCapacity];
-  float* out_[kCapacity];
-  std::size_t n_ = 0;
+  static constexpr std::size_t kGroup = 16;  ///< compute() runs whole groups of this many lanes
+  static constexpr double kGimbalLock = 1e-12;  ///< point_covariance_fast's test (|middle| < 1e-6)
+  /// `s.nod` is not used: each lane brings its own variance.
+  CovarianceLanes(RpyOrder order, const PointSigmas& s);
+  /// Lanes [0, n rounded up to kGroup): both arrays must hold that many lanes per row, with
+  /// finite or NaN inputs (never read uninitialised) in the lanes past n.
+  void compute(const float* in, float* res, std::size_t stride, std::size_t n) const;
+  /// The squared length of the middle pose axis (outer x inner) for an inner axis.
+  double middle_norm2(double ix, double iy, double iz) const {
+    return xyz_ ? iy * iy + iz * iz : ix * ix + iy * iy;
+  }
+
+ private:
   bool xyz_;
   float var_range_, var_bearing_, var_outer_, var_middle_, var_inner_, var_pos_[3];
 };
