@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <ctime>
 #include <mutex>
+#include <optional>
 #include <nlohmann/json.hpp>
 
 #include "pcdp/errors.hpp"
@@ -22,6 +24,25 @@ namespace {
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
+
+// Times one phase of a run into RunSummary::phases: wall and process CPU time (all threads).
+class PhaseTimer {
+ public:
+  PhaseTimer(RunSummary& sum, std::string name)
+      : sum_(sum), name_(std::move(name)), wall0_(std::chrono::steady_clock::now()), cpu0_(std::clock()) {}
+  ~PhaseTimer() {
+    sum_.phases.push_back({name_, seconds_since(wall0_),
+                           static_cast<double>(std::clock() - cpu0_) / static_cast<double>(CLOCKS_PER_SEC)});
+  }
+  PhaseTimer(const PhaseTimer&) = delete;
+  PhaseTimer& operator=(const PhaseTimer&) = delete;
+
+ private:
+  RunSummary& sum_;
+  std::string name_;
+  std::chrono::steady_clock::time_point wall0_;
+  std::clock_t cpu0_;
+};
 
 LabelHistogram histogram(const Pass& p) {
   LabelHistogram h{};
@@ -120,6 +141,7 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   // Only the stages that change the pass run before it; split (fusion) stages do not.
   for (std::size_t s = 0; s < stages_.size(); ++s) {
     if (!stages_[s]->wants_prepass()) continue;
+    const PhaseTimer phase(sum, "prepass " + cfg.stages[s].name);
     std::size_t par = 0;  // the prefix a worker may run
     while (par < s && (stages_[par]->concurrent() || stages_[par]->split())) ++par;
     // The worker also computes the stage's evidence when it ran the whole prefix.
@@ -172,6 +194,8 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   }
   std::int64_t last_line = -1;
   std::string last_file;
+  std::optional<PhaseTimer> phase;
+  phase.emplace(sum, "passes");
   detail::ordered_parallel<Processed>(
       np, sum.threads, window,
       [&](std::size_t k, WorkShare& share) {
@@ -239,6 +263,7 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   // (each copies its body behind the header) are two more parts, last: on 2 threads they run
   // beside elevation.tif, the longest part, instead of after it. A part may hand tasks to the
   // WorkShare (elevation.tif compresses one group of bands per task): a thread with no part left helps.
+  phase.emplace(sum, "finish");  // (the passes' timer records as it is replaced)
   LockedSink sink(out);
   std::vector<std::pair<std::size_t, std::size_t>> parts;  // (stage, part); stage == size: a writer
   for (std::size_t s = 0; s < stages_.size(); ++s)
@@ -265,6 +290,7 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
       [&](std::size_t t, StageReport&& rep) {
         if (parts[t].first < stages_.size()) merge_report(sum.stages[parts[t].first], rep);
       });
+  phase.reset();
   if (returns.points() != sum.input_returns)
     throw std::logic_error("returns.pcd holds " + std::to_string(returns.points()) + " returns, input had " +
                            std::to_string(sum.input_returns));
@@ -351,6 +377,9 @@ std::string report_json(const PipelineConfig& cfg, const RunSummary& sum) {
   }
   j["warnings"] = sum.warnings;
   j["seconds"] = sum.seconds;
+  j["phases"] = nlohmann::json::array();
+  for (const auto& ph : sum.phases)
+    j["phases"].push_back({{"phase", ph.name}, {"seconds", ph.seconds}, {"cpu_seconds", ph.cpu_seconds}});
   j["threads"] = sum.threads;
   return j.dump(2) + "\n";
 }

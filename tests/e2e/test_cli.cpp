@@ -854,6 +854,27 @@ std::string expect_same_outputs_on_one_and_two_threads(const std::vector<std::st
       EXPECT_EQ(ja["threads"], 1);
       EXPECT_EQ(jb["threads"], 2);
       EXPECT_EQ(ja["labels"], jb["labels"]);
+      // The phases: the same names in the same order whatever the thread count (the sample's
+      // check_consistency needs every pass first), each a part of the run's wall time, and no
+      // more CPU time than its threads could give it: the workers and the calling thread, which
+      // takes the results in order (with a little slack for clock ticks).
+      for (const auto* jr : {&ja, &jb}) {
+        const auto& ph = (*jr)["phases"];
+        EXPECT_EQ(ph.size(), 3u) << ph.dump();
+        if (ph.size() != 3u) continue;
+        EXPECT_EQ(ph[0]["phase"], "prepass check_consistency");
+        EXPECT_EQ(ph[1]["phase"], "passes");
+        EXPECT_EQ(ph[2]["phase"], "finish");
+        double wall = 0.0;
+        for (const auto& p : ph) {
+          const double sec = p["seconds"], cpu = p["cpu_seconds"];
+          EXPECT_GT(sec, 0.0) << p.dump();
+          EXPECT_GE(cpu, 0.0) << p.dump();
+          EXPECT_LE(cpu, ((*jr)["threads"].get<double>() + 1.0) * sec + 0.02) << p.dump();
+          wall += sec;
+        }
+        EXPECT_LE(wall, (*jr)["seconds"].get<double>());
+      }
       for (std::size_t s = 0; s < ja["stages"].size(); ++s) {
         EXPECT_EQ(ja["stages"][s]["in"], jb["stages"][s]["in"]) << s;
         EXPECT_EQ(ja["stages"][s]["out"], jb["stages"][s]["out"]) << s;

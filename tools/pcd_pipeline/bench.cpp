@@ -225,11 +225,12 @@ int cmd_bench(const BenchArgs& a) {
   // byte-identical (report.json aside: it holds timings). The two alternate, run by run, so both
   // see the same machine (a shared machine's speed drifts over seconds).
   const fs::path out2 = scratch.path / "out-2threads";
-  std::vector<RunSummary> runs;
+  std::vector<RunSummary> runs, runs2;
   std::vector<double> totals2;
   for (int r = 0; r < a.reps; ++r) {
     runs.push_back(Pipeline::prepare(load_pipeline(a.pipeline, options_for(data, out))).run());
-    totals2.push_back(Pipeline::prepare(load_pipeline(a.pipeline, options_for(data, out2))).run({}, 2).seconds);
+    runs2.push_back(Pipeline::prepare(load_pipeline(a.pipeline, options_for(data, out2))).run({}, 2));
+    totals2.push_back(runs2.back().seconds);
   }
   std::size_t compared = 0, differ = 0;
   for (const auto& e : fs::directory_iterator(out)) {
@@ -363,6 +364,20 @@ int cmd_bench(const BenchArgs& a) {
   std::printf("  whole run on 2 threads: %.3f s against %.3f s on 1: %.2fx (target >= 1.7; run by run %.2f-%.2fx); "
               "%zu output file(s) compared, %s\n",
               t2, t1, t1 / t2, *lo, *hi, compared, differ ? "SOME DIFFER" : "all byte-identical");
+  // Where the 2-thread run loses time: each phase's median wall time on 1 and 2 threads, and the
+  // core time the 2-thread run left idle in it (2 x wall - the process's CPU time).
+  std::printf("  phases, ms on 1 / 2 threads (2-thread idle core ms):");
+  for (std::size_t ph = 0; ph < runs.front().phases.size(); ++ph) {
+    std::vector<double> w1, w2, idle;
+    for (const auto& r : runs) w1.push_back(r.phases[ph].seconds);
+    for (const auto& r : runs2) {
+      w2.push_back(r.phases[ph].seconds);
+      idle.push_back(std::max(0.0, 2.0 * r.phases[ph].seconds - r.phases[ph].cpu_seconds));
+    }
+    std::printf("%s %s %.1f / %.1f (%.1f)", ph ? "," : "", runs.front().phases[ph].name.c_str(), 1e3 * median(w1),
+                1e3 * median(w2), 1e3 * median(idle));
+  }
+  std::printf("\n");
   std::fflush(stdout);
   if (!a.scaling.empty()) return run_scaling(a, scratch.path);
   return 0;

@@ -29,6 +29,15 @@ struct RunSummary {
   std::vector<std::string> warnings;
   double seconds = 0.0;
   unsigned threads = 1;
+  /// The run's phases in order ("prepass <stage>" for each stage that needs every pass first,
+  /// "passes", "finish": writing the products): wall time and the process's CPU time over it.
+  /// With as many cores as threads, threads x seconds - cpu_seconds is the core time the phase
+  /// left idle.
+  struct Phase {
+    std::string name;
+    double seconds = 0.0, cpu_seconds = 0.0;
+  };
+  std::vector<Phase> phases;
   std::string output_dir;
   std::vector<std::string> outputs;  ///< final paths written
 };
