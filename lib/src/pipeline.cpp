@@ -139,6 +139,21 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   const std::size_t window = sum.threads + 1;  // passes in memory at once: bounded, whatever np
   // Prepass: stages that need every pass's evidence first (passes are streamed, never all held).
   // Only the stages that change the pass run before it; split (fusion) stages do not.
+  //
+  // The first passes the last prepass stage reads are kept, as the stages before it left them
+  // (with their reports), when those stages are all concurrent: the main loop then takes them as
+  // they are instead of reading and processing them a second time. At most `window` of them, so
+  // memory stays bounded by a few passes (a worker's pass in flight plus the kept ones).
+  std::size_t last_pre = stages_.size();
+  for (std::size_t s = 0; s < stages_.size(); ++s)
+    if (stages_[s]->wants_prepass()) last_pre = s;
+  bool keep_passes = last_pre < stages_.size() && stages_[last_pre]->prepass_split();
+  for (std::size_t e = 0; keep_passes && e < last_pre; ++e) keep_passes = stages_[e]->concurrent();
+  struct Kept {
+    Pass pass;
+    std::vector<StageReport> reports;  // of the stages before last_pre
+  };
+  std::vector<std::optional<Kept>> kept(keep_passes ? std::min(np, window) : 0);
   for (std::size_t s = 0; s < stages_.size(); ++s) {
     if (!stages_[s]->wants_prepass()) continue;
     const PhaseTimer phase(sum, "prepass " + cfg.stages[s].name);
@@ -157,13 +172,21 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
         np, sum.threads, early ? 4 * window : window,
         [&](std::size_t k) {
           Pre r{read_pass(cfg.scans[k], k), nullptr, 0.0};
+          const bool keep = s == last_pre && k < kept.size();
           StageReport scratch;
-          for (std::size_t e = 0; e < par; ++e)
-            if (stages_[e]->concurrent()) stages_[e]->process(r.pass, scratch);
+          std::vector<StageReport> reports(keep ? s : 0);
+          for (std::size_t e = 0; e < par; ++e) {
+            if (!stages_[e]->concurrent()) continue;
+            if (keep)
+              run_stage(*stages_[e], r.pass, reports[e]);  // its share of the run's report, as in the main loop
+            else
+              stages_[e]->process(r.pass, scratch);
+          }
           if (early) {
             const auto t0 = std::chrono::steady_clock::now();
             r.work = stages_[s]->prepass_compute(r.pass);
             r.seconds = seconds_since(t0);
+            if (keep) kept[k] = Kept{std::move(r.pass), std::move(reports)};  // slot k: this worker's alone
             r.pass = Pass{};  // only the evidence travels on
           }
           return r;
@@ -200,10 +223,18 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
       np, sum.threads, window,
       [&](std::size_t k, WorkShare& share) {
         Processed r;
-        r.pass = read_pass(cfg.scans[k], k);
         r.reports.resize(stages_.size());
         r.works.resize(stages_.size());
-        for (r.stop = 0; r.stop < stages_.size(); ++r.stop) {
+        std::size_t first = 0;  // the first stage to run here
+        if (k < kept.size() && kept[k]) {
+          r.pass = std::move(kept[k]->pass);
+          for (std::size_t e = 0; e < last_pre; ++e) r.reports[e] = std::move(kept[k]->reports[e]);
+          kept[k].reset();
+          first = last_pre;
+        } else {
+          r.pass = read_pass(cfg.scans[k], k);
+        }
+        for (r.stop = first; r.stop < stages_.size(); ++r.stop) {
           Stage& st = *stages_[r.stop];
           StageReport& rep = r.reports[r.stop];
           if (st.concurrent()) {
