@@ -37,7 +37,7 @@ namespace {
 //      returns.
 // Every return goes through the same arithmetic whatever its place in a chunk, so the values do
 // not depend on where a chunk or a streamed line begins.
-constexpr std::size_t kChunk = 128;  // returns, a multiple of CovarianceLanes::kGroup; the arrays (27 KB) stay in L1
+constexpr std::size_t kChunk = 128;  // returns, a multiple of CovarianceLanes::kGroup; the arrays (25 KB) stay in L1
 
 struct Chunk {
   // Sweep 1: pose weights; calibrated range; bearing cosine, sine; the nod's base cosine, sine and
