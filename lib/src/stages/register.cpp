@@ -38,6 +38,7 @@ namespace {
 // Every return goes through the same arithmetic whatever its place in a chunk, so the values do
 // not depend on where a chunk or a streamed line begins.
 constexpr std::size_t kChunk = 128;  // returns, a multiple of CovarianceLanes::kGroup; the arrays (25 KB) stay in L1
+static_assert(kChunk % CovarianceLanes::kGroup == 0, "CovarianceLanes::compute runs whole groups of lanes");
 
 struct Chunk {
   // Sweep 1: pose weights; calibrated range; bearing cosine, sine; the nod's base cosine, sine and
