@@ -46,6 +46,25 @@ Pass grid_pass(const std::vector<std::vector<float>>& rows) {
   register_pass(p, RegisterParams{}, SensorParams{}, Eigen::Isometry3d::Identity(), nullptr);
   return p;
 }
+
+/// Rows of a wall at 10 m, 21 beams wide, with one return in front of it at beam 10 per line.
+std::vector<std::vector<float>> spike_in_wall(const std::vector<float>& spike) {
+  std::vector<std::vector<float>> rows;
+  for (float c : spike) {
+    std::vector<float> row(21, 10.0f);
+    row[10] = c;
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+/// Which lines' return at beam 10 the stage flags (coaxial sensor).
+std::vector<bool> flagged_at_beam_10(Pass p, const MixedPixelParams& mp) {
+  reject_mixed_pixels(p, mp, coaxial_sensor());
+  std::vector<bool> f;
+  for (std::size_t k = 0; k < p.line_count(); ++k) f.push_back(p.label[p.line_begin[k] + 10] == Label::kMixedPixel);
+  return f;
+}
 }  // namespace
 
 TEST(RejectMixedPixels, AVeilBetweenTwoSurfacesIsFlaggedAndTheSurfacesAreNot) {
@@ -162,27 +181,15 @@ TEST(RejectMixedPixels, AOneBeamSpikeWhoseRangeChangesAcrossLinesIsAMixtureWithA
   // A wall at 10 m; at beam 10, something one return wide in front of it in every line. Both
   // along-line neighbours are the wall, so along the line a thin post and a mixture of a post
   // with the wall look alike; across lines they do not.
-  const auto lines = [](const std::vector<float>& spike) {
-    std::vector<std::vector<float>> rows;
-    for (float c : spike) {
-      std::vector<float> row(21, 10.0f);
-      row[10] = c;
-      rows.push_back(row);
-    }
-    return rows;
-  };
   const auto flagged = [](Pass p, bool spikes) {
     MixedPixelParams mp;
     mp.spikes = spikes;
-    reject_mixed_pixels(p, mp, coaxial_sensor());
-    std::vector<bool> f;
-    for (std::size_t k = 0; k < p.line_count(); ++k) f.push_back(p.label[p.line_begin[k] + 10] == Label::kMixedPixel);
-    return f;
+    return flagged_at_beam_10(p, mp);
   };
   // A mixture: the range follows the share of the footprint on the thin object, which changes
   // from line to line. Every line is flagged, the first and last too (one neighbour across is
   // enough: the return is on neither); nothing else is.
-  const Pass mixture = grid_pass(lines({8.0f, 8.6f, 9.2f, 8.3f, 7.7f, 8.9f}));
+  const Pass mixture = grid_pass(spike_in_wall({8.0f, 8.6f, 9.2f, 8.3f, 7.7f, 8.9f}));
   EXPECT_EQ(flagged(mixture, true), std::vector<bool>(6, true));
   Pass all = mixture;
   EXPECT_EQ(reject_mixed_pixels(all, MixedPixelParams{}, coaxial_sensor()), 6u);
@@ -192,8 +199,8 @@ TEST(RejectMixedPixels, AOneBeamSpikeWhoseRangeChangesAcrossLinesIsAMixtureWithA
   EXPECT_FALSE(without.front());
   EXPECT_FALSE(without.back());
   // A thin post keeps its range from line to line; its top return has the post below it.
-  EXPECT_EQ(flagged(grid_pass(lines({6.0f, 6.0f, 6.01f, 6.0f, 6.0f, 6.0f})), true), std::vector<bool>(6, false));
-  EXPECT_EQ(flagged(grid_pass(lines({6.0f, 6.0f, 6.0f, 10.0f, 10.0f, 10.0f})), true), std::vector<bool>(6, false));
+  EXPECT_EQ(flagged(grid_pass(spike_in_wall({6.0f, 6.0f, 6.01f, 6.0f, 6.0f, 6.0f})), true), std::vector<bool>(6, false));
+  EXPECT_EQ(flagged(grid_pass(spike_in_wall({6.0f, 6.0f, 6.0f, 10.0f, 10.0f, 10.0f})), true), std::vector<bool>(6, false));
 }
 
 TEST(RejectMixedPixels, ASpikeUpToSpikeWidthReturnsWideIsTestedLikeAOneBeamSpike) {
@@ -255,6 +262,39 @@ TEST(RejectMixedPixels, ASpikeUpToSpikeWidthReturnsWideIsTestedLikeAOneBeamSpike
     rows.push_back(row);
   }
   EXPECT_EQ(flagged(grid_pass(rows), 0, 3).outside - flagged(grid_pass(rows), 0, 1).outside, 0u);
+}
+
+TEST(RejectMixedPixels, ASpikeThatKeepsItsRangeAcrossLinesIsAMixtureWhereItsAmplitudeSaysSo) {
+  // A dim wall (amplitude 30) at 10 m; at beam 10 a bright post (amplitude 180) at 8 m in lines 3-5
+  // and, in lines 0-2, mixtures of post and wall as at the top of a post while the nod turns: their
+  // ranges differ by 2 cm from line to line (within the tolerance, so the range test across lines
+  // cannot tell them from the post), but their amplitudes follow the mixing model. With a share f
+  // of the footprint on the post, r = (180 f 8 + 30 (1 - f) 10) / A and A = 180 f + 30 (1 - f):
+  // f = 0.723, 0.76, 0.8 give r = 8.12, 8.10, 8.08 m and A = 138.5, 144, 150.
+  const std::vector<float> range{8.12f, 8.10f, 8.08f, 8.0f, 8.0f, 8.0f};
+  const auto flagged = [&](const std::vector<float>& spike_amp, float wall_amp, double dim_ratio) {
+    Pass p = grid_pass(spike_in_wall(range));
+    for (std::size_t k = 0; k < p.line_count(); ++k)
+      for (std::size_t b = 0; b < 21; ++b) p.amplitude[p.line_begin[k] + b] = b == 10 ? spike_amp[k] : wall_amp;
+    MixedPixelParams mp;
+    mp.spike_dim_ratio = dim_ratio;
+    return flagged_at_beam_10(p, mp);
+  };
+  const std::vector<float> mixed_amp{138.5f, 144.0f, 150.0f, 180.0f, 180.0f, 180.0f};
+  const std::vector<bool> mixtures{true, true, true, false, false, false};
+  EXPECT_EQ(flagged(mixed_amp, 30.0f, 0.9), mixtures);
+  // Off (spike_dim_ratio 0), nothing: each return keeps the range of a neighbour across lines.
+  EXPECT_EQ(flagged(mixed_amp, 30.0f, 0.0), std::vector<bool>(6, false));
+  // As bright as the post: the same object, 8-12 cm deeper (a round post's flank), not a mixture.
+  EXPECT_EQ(flagged(std::vector<float>(6, 180.0f), 30.0f, 0.9), std::vector<bool>(6, false));
+  // Within spike_dim_ratio of the post (165 > 0.9 x 180 = 162): kept.
+  EXPECT_EQ(flagged({165.0f, 165.0f, 165.0f, 180.0f, 180.0f, 180.0f}, 30.0f, 0.9), std::vector<bool>(6, false));
+  // A wall as bright as the post: amplitude cannot tell post, wall and mixture apart.
+  EXPECT_EQ(flagged(mixed_amp, 170.0f, 0.9), std::vector<bool>(6, false));
+  // Dimmer than the wall: not between the two surfaces, so not their mixture.
+  EXPECT_EQ(flagged({25.0f, 25.0f, 25.0f, 180.0f, 180.0f, 180.0f}, 30.0f, 0.9), std::vector<bool>(6, false));
+  // Clipped: a post at the amplitude ceiling says nothing about the share of its light.
+  EXPECT_EQ(flagged({138.5f, 144.0f, 150.0f, 255.0f, 255.0f, 255.0f}, 30.0f, 0.9), std::vector<bool>(6, false));
 }
 
 TEST(RejectMixedPixels, GrazingGroundIsKept) {

@@ -38,8 +38,12 @@
 // return of a post has the post below it; a mixture's range follows the share of the footprint on
 // the object, which changes as the scan moves. So a return of a spike is a mixed pixel where it
 // differs by more than the tolerance from each neighbour it has across lines (one is enough: at a
-// sweep's end there is one). Not used on unorganized clouds, whose range-image bands interleave
-// neighbouring lines.
+// sweep's end there is one). Where the spike keeps its neighbours' range across lines (a mixture
+// at a post's top as the nod turns keeps its share of post and wall), its amplitude decides: it is
+// a mixture if it lies behind the brightest return of its object across lines (up to 4 lines each
+// way) and in front of the surface behind, each by more than the tolerance, and its amplitude lies
+// between the surface's and spike_dim_ratio times the object's, no brighter than test 4's mixture.
+// Not used on unorganized clouds, whose range-image bands interleave neighbouring lines.
 // Across lines, each nod sweep is a sequence of its own (lines fold back where the nod reverses).
 // Amplitudes at or above amplitude_saturation (clipped) skip test 4.
 // Only the return itself is labelled `mixed_pixel`, never a window of neighbours.
@@ -72,6 +76,7 @@ struct MixedPixelParams {
   bool one_sided = true;
   bool spikes = true;                ///< spikes in front of a surface, off their neighbours across lines
   int spike_width = 3;               ///< returns: the widest run along a line taken for a spike
+  double spike_dim_ratio = 0.9;      ///< a spike flat across lines is a mixture below this x its object's brightest return (0: off)
   int max_span = 6;                  ///< steps between the two sides' nearest neighbours
 };
 
