@@ -325,8 +325,9 @@ TEST(RejectMixedPixels, GrazingGroundIsKept) {
 
 TEST(RejectMixedPixels, OnSimulatedScenesOfTwoSensorSettings) {
   // The same seeds as bench/pcdp_mixed_bench (which adds the baselines). Measured: A 0.911
-  // (637/699; 0.908 before corners beside one neighbour across, 0.901 with spike_width 1), B 0.958 (249/260; 0.923 before the spike test), both
-  // above the target of 0.90. A is held at 0.905 so that losing the spikes two and three
+  // (637/699; 0.908 before corners beside one neighbour across, 0.901 with spike_width 1),
+  // B 0.965 (251/260; 0.958 before the amplitude test for spikes, 0.923 before the spike test),
+  // both above the target of 0.90. A is held at 0.905 so that losing the spikes two and three
   // returns wide fails, B at 0.94 so that losing the spike test fails (docs/mixed_pixels.md:
   // more seeds).
   for (char which : {'A', 'B'}) {
