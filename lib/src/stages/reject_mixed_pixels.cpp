@@ -522,7 +522,12 @@ class RejectMixedPixelsStage final : public Stage {
  public:
   RejectMixedPixelsStage(MixedPixelParams p, const RunContext& ctx) : params_(p), sensor_(ctx.config->sensor) {}
   bool concurrent() const override { return true; }
-  int stream_reach() const override { return params_.across_lines ? params_.window + 1 : 0; }
+  // Across lines it looks `window` lines (kObjectReach for a spike's object) each way, plus one
+  // to read a nod reversal at the last of them.
+  int stream_reach() const override {
+    if (!params_.across_lines) return 0;
+    return std::max(params_.window, params_.spikes ? static_cast<int>(kObjectReach) : 0) + 1;
+  }
   void process(Pass& pass, StageReport&) override { reject_mixed_pixels(pass, params_, sensor_); }
 
  private:
