@@ -146,6 +146,30 @@ TEST(Elevation, MergingGridsOfDisjointPassesEqualsFusingAllPasses) {
   fa.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell&) { order_a.insert(order_a.end(), {ix, iy}); });
   fs.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell&) { order_s.insert(order_s.end(), {ix, iy}); });
   EXPECT_EQ(order_a, order_s);
+  // b re-tiled by GDAL, as a user making a cloud-optimized GeoTIFF of it would (16 x 16 tiles,
+  // several across and down): merged, the same cells and floats.
+  {
+    GDALAllRegister();
+    GDALDataset* src = static_cast<GDALDataset*>(GDALOpen((dir + "/b.tif").c_str(), GA_ReadOnly));
+    ASSERT_NE(src, nullptr);
+    ASSERT_GT(src->GetRasterXSize(), 32);
+    ASSERT_GT(src->GetRasterYSize(), 32);
+    char** o = nullptr;
+    for (const char* kv : {"TILED=YES", "BLOCKXSIZE=16", "BLOCKYSIZE=16", "COMPRESS=DEFLATE"}) o = CSLAddString(o, kv);
+    GDALDataset* tiled = GetGDALDriverManager()->GetDriverByName("GTiff")->CreateCopy(
+        (dir + "/b_tiled.tif").c_str(), src, FALSE, o, nullptr, nullptr);
+    CSLDestroy(o);
+    ASSERT_NE(tiled, nullptr);
+    int bx = 0, by = 0;
+    tiled->GetRasterBand(1)->GetBlockSize(&bx, &by);
+    EXPECT_EQ(bx, 16);
+    GDALClose(tiled);
+    GDALClose(src);
+    ElevationGrid ft = io::read_elevation_geotiff(dir + "/a.tif");
+    io::merge_elevation_geotiff(ft, dir + "/b_tiled.tif");
+    ASSERT_EQ(ft.size(), fa.size());
+    expect_same(fa, ft, 0.0);
+  }
   // A grid of another resolution is refused before any cell is read: the grid is as it was.
   ElevationGrid coarse(2 * prm.resolution, prm.band);
   fuse_pass(coarse, passes[2], prm, 1e-4);

@@ -1,7 +1,8 @@
 // The float32 GeoTIFF reader (lib/src/io/tiff_reader.hpp): our own files (classic and BigTIFF)
 // read back bit for bit; files as GDAL wrote them for pcd_pipeline before (DEFLATE, band or pixel
-// interleaved, uncompressed) read the same as GDAL reads them; GDAL's metadata unescaped as GDAL
-// does; and damaged or unsupported files rejected with an error naming the file and the rule.
+// interleaved, uncompressed) read the same as GDAL reads them; tiled files as GDAL writes them;
+// GDAL's metadata unescaped as GDAL does; and damaged or unsupported files rejected with an error
+// naming the file and the rule.
 #include <gdal_priv.h>
 #include <gtest/gtest.h>
 
@@ -52,22 +53,24 @@ void expect_values(const FloatTiffData& d, int bands, int height) {
       }
 }
 
-// A file as pcd_pipeline had GDAL write elevation.tif, with creation options `opts` added.
-void gdal_write(const std::string& path, int bands, int height, std::vector<std::string> opts) {
+// A file as pcd_pipeline had GDAL write elevation.tif, with creation options `opts` added:
+// kWidth columns of value() unless told otherwise.
+void gdal_write(const std::string& path, int bands, int height, std::vector<std::string> opts, int width = kWidth,
+                float (*values)(int, int, int) = value) {
   GDALAllRegister();
   char** o = nullptr;
   for (const auto& kv : opts) o = CSLAddString(o, kv.c_str());
-  GDALDataset* ds = GetGDALDriverManager()->GetDriverByName("GTiff")->Create(path.c_str(), kWidth, height, bands,
+  GDALDataset* ds = GetGDALDriverManager()->GetDriverByName("GTiff")->Create(path.c_str(), width, height, bands,
                                                                             GDT_Float32, o);
   CSLDestroy(o);
   ASSERT_NE(ds, nullptr);
   double gt[6] = {-4.5, 0.25, 0, 7.75, 0, -0.25};
   ds->SetGeoTransform(gt);
   ds->SetMetadataItem("PCDP_NOTE", "a<b & \"c\"");
-  std::vector<float> plane(static_cast<std::size_t>(kWidth * height));
+  std::vector<float> plane(static_cast<std::size_t>(width * height));
   for (int b = 0; b < bands; ++b) {
-    for (int i = 0; i < kWidth * height; ++i) plane[static_cast<std::size_t>(i)] = value(b, i % kWidth, i / kWidth);
-    ASSERT_EQ(ds->GetRasterBand(b + 1)->RasterIO(GF_Write, 0, 0, kWidth, height, plane.data(), kWidth, height,
+    for (int i = 0; i < width * height; ++i) plane[static_cast<std::size_t>(i)] = values(b, i % width, i / width);
+    ASSERT_EQ(ds->GetRasterBand(b + 1)->RasterIO(GF_Write, 0, 0, width, height, plane.data(), width, height,
                                                  GDT_Float32, 0, 0),
               CE_None);
   }
@@ -169,6 +172,62 @@ TEST(TiffReader, ReadsFilesAsGdalWroteThemForPcdPipeline) {
   }
 }
 
+TEST(TiffReader, ReadsTiledFilesAsGdalWritesThem) {
+  // Tiled GeoTIFFs (GDAL's TILED=YES, what cloud-optimized GeoTIFFs use): 16 x 16 tiles over a
+  // 37 x 35 raster, three tiles across and down, the right and bottom ones padded; band and pixel
+  // interleaved, DEFLATE and none. Every sample as written, bit for bit.
+  const std::string dir = test::fresh_dir();
+  const int width = 37, height = 35, bands = 3;
+  float (*v)(int, int, int) = [](int b, int col, int row) {
+    return (5 * col + 3 * row) % 11 == 0 ? std::numeric_limits<float>::quiet_NaN()
+                                         : static_cast<float>(b * 10000 + row * 100 + col) + 0.375f;
+  };
+  const std::vector<std::vector<std::string>> variants = {
+      {"TILED=YES", "BLOCKXSIZE=16", "BLOCKYSIZE=16", "COMPRESS=DEFLATE", "INTERLEAVE=BAND"},
+      {"TILED=YES", "BLOCKXSIZE=16", "BLOCKYSIZE=16", "COMPRESS=DEFLATE", "INTERLEAVE=PIXEL"},
+      {"TILED=YES", "BLOCKXSIZE=32", "BLOCKYSIZE=16", "INTERLEAVE=PIXEL"},
+      {"TILED=YES", "BLOCKXSIZE=16", "BLOCKYSIZE=48", "INTERLEAVE=BAND", "BIGTIFF=YES"}};
+  for (std::size_t k = 0; k < variants.size(); ++k) {
+    const std::string path = dir + "/tiled" + std::to_string(k) + ".tif";
+    SCOPED_TRACE(path);
+    gdal_write(path, bands, height, variants[k], width, v);
+    GDALDataset* ds = static_cast<GDALDataset*>(GDALOpen(path.c_str(), GA_ReadOnly));
+    ASSERT_NE(ds, nullptr);
+    int bx = 0, by = 0;
+    ds->GetRasterBand(1)->GetBlockSize(&bx, &by);
+    GDALClose(ds);
+    ASSERT_EQ(bx, k == 2 ? 32 : 16);  // GDAL made tiles, not strips
+    ASSERT_EQ(by, k == 3 ? 48 : 16);
+    const FloatTiffData d = io::detail::read_float_tiff(path);
+    ASSERT_EQ(d.width, width);
+    ASSERT_EQ(d.height, height);
+    ASSERT_EQ(d.bands, bands);
+    std::size_t nan = 0;
+    for (int b = 0; b < bands; ++b)
+      for (int i = 0; i < width * height; ++i) {
+        const float got = d.planes[static_cast<std::size_t>(b)][static_cast<std::size_t>(i)], want = v(b, i % width, i / width);
+        if (std::isnan(want)) {
+          ++nan;
+          ASSERT_TRUE(std::isnan(got)) << b << " " << i;
+        } else {
+          ASSERT_EQ(got, want) << b << " " << i;
+        }
+      }
+    EXPECT_GT(nan, 0u);
+    // Row by row: one row of tiles at a time, top first, the last one cut to the raster.
+    io::detail::FloatTiffRows rows(path);
+    std::vector<std::vector<float>> got;
+    int first = 0, count = 0, expect_first = 0;
+    const int tile_rows = k == 3 ? 48 : 16;
+    while (rows.next(first, count, got)) {
+      EXPECT_EQ(first, expect_first);
+      EXPECT_EQ(count, std::min(tile_rows, height - first));
+      expect_first += count;
+    }
+    EXPECT_EQ(expect_first, height);
+  }
+}
+
 TEST(TiffReader, RejectsWhatItCannotReadNamingTheFileAndTheRule) {
   const std::string dir = test::fresh_dir();
   const auto expect_error = [&](const std::string& path, const std::string& rule) {
@@ -186,8 +245,6 @@ TEST(TiffReader, RejectsWhatItCannotReadNamingTheFileAndTheRule) {
   expect_error(dir + "/lzw.tif", "tag 259 (Compression) = 5");
   gdal_write(dir + "/pred.tif", 2, 6, {"COMPRESS=DEFLATE", "PREDICTOR=3"});
   expect_error(dir + "/pred.tif", "tag 317 (Predictor) = 3");
-  gdal_write(dir + "/tiled.tif", 2, 6, {"TILED=YES", "BLOCKXSIZE=16", "BLOCKYSIZE=16"});
-  expect_error(dir + "/tiled.tif", "tiled");
   {
     GDALAllRegister();
     GDALDataset* ds = GetGDALDriverManager()->GetDriverByName("GTiff")->Create((dir + "/int.tif").c_str(), 4, 4, 1,
@@ -196,6 +253,33 @@ TEST(TiffReader, RejectsWhatItCannotReadNamingTheFileAndTheRule) {
     GDALClose(ds);
     expect_error(dir + "/int.tif", "tag 258 (BitsPerSample) = 16");
   }
+  // A tiled file whose TileWidth (tag 322) claims tiles far larger than the file could hold:
+  // refused before a tile's buffer is allocated.
+  gdal_write(dir + "/tiled.tif", 2, 6, {"TILED=YES", "BLOCKXSIZE=16", "BLOCKYSIZE=16"});
+  ASSERT_EQ(error_of(dir + "/tiled.tif"), "");
+  std::string tiled = bytes_of(dir + "/tiled.tif");
+  const auto u32 = [&](std::size_t at) {
+    std::uint32_t x = 0;
+    std::memcpy(&x, tiled.data() + at, 4);
+    return x;
+  };
+  const std::size_t dir0 = u32(4);
+  std::uint16_t entries = 0;
+  std::memcpy(&entries, tiled.data() + dir0, 2);
+  bool patched = false;
+  for (std::size_t e = 0; e < entries; ++e) {
+    const std::size_t at = dir0 + 2 + 12 * e;
+    std::uint16_t tag = 0, type = 0;
+    std::memcpy(&tag, tiled.data() + at, 2);
+    std::memcpy(&type, tiled.data() + at + 2, 2);
+    if (tag != 322) continue;
+    const std::uint32_t huge = type == 3 ? 0xFFFFu : 0x7FFFFFFFu;  // SHORT or LONG
+    std::memcpy(&tiled[at + 8], &huge, type == 3 ? 2 : 4);
+    patched = true;
+  }
+  ASSERT_TRUE(patched);
+  write_bytes(dir + "/huge_tiles.tif", tiled);
+  expect_error(dir + "/huge_tiles.tif", "larger than the file's");
   // Our own file, damaged: cut short, a strip's bytes flipped, a raster claimed far larger than
   // the file can hold (nothing that size is allocated).
   FloatTiff t;

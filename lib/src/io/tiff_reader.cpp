@@ -40,6 +40,8 @@ const char* tag_name(std::uint16_t tag) {
     case 279: return "StripByteCounts";
     case 284: return "PlanarConfiguration";
     case 317: return "Predictor";
+    case 322: return "TileWidth";
+    case 323: return "TileLength";
     case 339: return "SampleFormat";
     default: return "a tag";
   }
@@ -57,9 +59,14 @@ struct FloatTiffRows::Impl {
   std::ifstream in;
   std::uint64_t size = 0;  ///< of the file, bytes
   FloatTiffInfo info;
+  // The raster is stored in blocks: strips (the raster's width, rps rows) or tiles (bw x rps,
+  // `across` of them side by side, padded at the right and bottom edges). A strip is one block
+  // across; `strips_down` counts the rows of blocks.
   std::uint64_t w = 0, h = 0, spp = 0, rps = 0, planar = 1, compression = 1, strips_down = 0;
+  std::uint64_t bw = 0, across = 1;
+  bool tiled = false;
   std::vector<std::uint64_t> offsets, counts;
-  std::uint64_t next_down = 0;  ///< the next strip of rows
+  std::uint64_t next_down = 0;  ///< the next row of blocks
   std::vector<std::uint8_t> packed;
   std::vector<float> buf;
   std::unique_ptr<libdeflate_decompressor, DecompressorFree> inflate;
@@ -157,7 +164,7 @@ struct FloatTiffRows::Impl {
         if (v != want)
           fail(std::string("tag ") + std::to_string(tag) + " (" + tag_name(tag) + ") = " + std::to_string(v) + ": " + rule);
     };
-    if (dir.count(322) || dir.count(324)) fail("a tiled TIFF; only strips are read");
+    tiled = dir.count(322) || dir.count(323) || dir.count(324) || dir.count(325);
     w = one(256, 0, true);
     h = one(257, 0, true);
     spp = one(277, 1, false);
@@ -176,8 +183,25 @@ struct FloatTiffRows::Impl {
     if (predictor != 1) fail("tag 317 (Predictor) = " + std::to_string(predictor) + ": only no predictor (1) is read");
     planar = one(284, 1, false);
     if (planar != 1 && planar != 2) fail("tag 284 (PlanarConfiguration) = " + std::to_string(planar) + ": must be 1 or 2");
-    rps = std::min(one(278, h, false), h);
-    if (rps < 1) fail("tag 278 (RowsPerStrip) = 0");
+    const std::uint64_t per_pixel = planar == 2 ? 1 : spp;  // samples of a pixel in one block
+    if (tiled) {
+      bw = one(322, 0, true);
+      rps = one(323, 0, true);
+      if (bw < 1 || rps < 1)
+        fail("tags 322 and 323 (TileWidth, TileLength) = " + std::to_string(bw) + " x " + std::to_string(rps) +
+             ": each must be at least 1");
+      // A tile is stored whole, padding included: it cannot outgrow what the file can hold
+      // (DEFLATE expands at most 1032 to 1). Checked before a tile's buffer is allocated.
+      const std::uint64_t limit = size * 1032 + 4096;
+      if (bw > limit / rps / per_pixel / 4)
+        fail("tiles of " + std::to_string(bw) + " x " + std::to_string(rps) + " x " + std::to_string(per_pixel) +
+             " floats are larger than the file's " + std::to_string(size) + " bytes can hold");
+      across = (w + bw - 1) / bw;
+    } else {
+      bw = w;
+      rps = std::min(one(278, h, false), h);
+      if (rps < 1) fail("tag 278 (RowsPerStrip) = 0");
+    }
 
     // A raster's samples cannot outgrow what its strips can hold: DEFLATE expands at most 1032
     // to 1; uncompressed strips hold their bytes. Checked before anything is allocated.
@@ -187,12 +211,13 @@ struct FloatTiffRows::Impl {
            " floats is larger than its " + std::to_string(size) + " bytes can hold");
 
     strips_down = (h + rps - 1) / rps;
-    const std::uint64_t strips = planar == 2 ? strips_down * spp : strips_down;
-    offsets = values(273);
-    counts = values(279);
-    if (offsets.size() != strips || counts.size() != strips)
-      fail("tags 273 and 279 (StripOffsets, StripByteCounts) hold " + std::to_string(offsets.size()) + " and " +
-           std::to_string(counts.size()) + " strips; the raster has " + std::to_string(strips));
+    const std::uint64_t blocks = strips_down * across * (planar == 2 ? spp : 1);
+    offsets = values(tiled ? 324 : 273);
+    counts = values(tiled ? 325 : 279);
+    if (offsets.size() != blocks || counts.size() != blocks)
+      fail(std::string(tiled ? "tags 324 and 325 (TileOffsets, TileByteCounts) hold " : "tags 273 and 279 (StripOffsets, StripByteCounts) hold ") +
+           std::to_string(offsets.size()) + " and " + std::to_string(counts.size()) + (tiled ? " tiles" : " strips") +
+           "; the raster has " + std::to_string(blocks));
 
     info.width = static_cast<int>(w);
     info.height = static_cast<int>(h);
@@ -220,10 +245,10 @@ struct FloatTiffRows::Impl {
     if (!inflate) throw std::runtime_error(path + ": cannot set up DEFLATE");
   }
 
-  /// Strip `s` (of `rows` rows, `per_pixel` samples a pixel) decoded into buf.
+  /// Block `s` (`rows` rows of bw pixels, `per_pixel` samples a pixel) decoded into buf.
   void decode(std::uint64_t s, std::uint64_t rows, std::uint64_t per_pixel) {
-    const std::uint64_t need = rows * w * per_pixel * 4;
-    const std::string what = "strip " + std::to_string(s);
+    const std::uint64_t need = rows * bw * per_pixel * 4;
+    const std::string what = (tiled ? "tile " : "strip ") + std::to_string(s);
     check_within(offsets[s], counts[s], what);
     if (compression == 1) {
       if (counts[s] < need) fail(what + " holds " + std::to_string(counts[s]) + " bytes, not " + std::to_string(need));
@@ -233,6 +258,7 @@ struct FloatTiffRows::Impl {
     packed.resize(counts[s]);
     read(offsets[s], counts[s], what, packed.data());
     // A last strip may be stored full height (libtiff) or cut to the rows left (GDAL): both do.
+    // A tile is always stored whole.
     std::size_t got = 0;
     const libdeflate_result res = libdeflate_zlib_decompress(inflate.get(), packed.data(), packed.size(), buf.data(),
                                                              buf.size() * sizeof(float), &got);
@@ -252,20 +278,25 @@ bool FloatTiffRows::next(int& first, int& count, std::vector<std::vector<float>>
   if (m.next_down >= m.strips_down) return false;
   const std::uint64_t down = m.next_down++;
   const std::uint64_t n = std::min(m.rps, m.h - down * m.rps);
-  const std::uint64_t per_pixel = m.planar == 2 ? 1 : m.spp;  // samples of a pixel in one strip
-  m.buf.resize(m.rps * m.w * per_pixel);
+  const std::uint64_t per_pixel = m.planar == 2 ? 1 : m.spp;  // samples of a pixel in one block
+  m.buf.resize(m.rps * m.bw * per_pixel);
   rows.resize(m.spp);
   for (auto& r : rows) r.resize(n * m.w);
-  if (m.planar == 2) {
-    for (std::uint64_t b = 0; b < m.spp; ++b) {
-      m.decode(b * m.strips_down + down, n, 1);
-      std::memcpy(rows[b].data(), m.buf.data(), n * m.w * sizeof(float));
+  const std::uint64_t planes = m.planar == 2 ? m.spp : 1, per_plane = m.strips_down * m.across;
+  for (std::uint64_t p = 0; p < planes; ++p)
+    for (std::uint64_t j = 0; j < m.across; ++j) {
+      m.decode(p * per_plane + down * m.across + j, m.tiled ? m.rps : n, per_pixel);
+      const std::uint64_t x0 = j * m.bw, cols = std::min(m.bw, m.w - x0);
+      for (std::uint64_t r = 0; r < n; ++r) {
+        const float* src = m.buf.data() + r * m.bw * per_pixel;
+        if (m.planar == 2) {
+          std::memcpy(rows[p].data() + r * m.w + x0, src, cols * sizeof(float));
+          continue;
+        }
+        for (std::uint64_t c = 0; c < cols; ++c)
+          for (std::uint64_t b = 0; b < m.spp; ++b) rows[b][r * m.w + x0 + c] = src[c * m.spp + b];
+      }
     }
-  } else {
-    m.decode(down, n, m.spp);
-    for (std::uint64_t i = 0; i < n * m.w; ++i)
-      for (std::uint64_t b = 0; b < m.spp; ++b) rows[b][i] = m.buf[i * m.spp + b];
-  }
   first = static_cast<int>(down * m.rps);
   count = static_cast<int>(n);
   return true;

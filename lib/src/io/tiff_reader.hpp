@@ -3,11 +3,11 @@
 // elevation grids back without linking GDAL, whose hundred-odd shared libraries cost every start
 // of the command line tool about 50 ms (docs/performance.md, twelfth round).
 //
-// It reads little-endian ("II") classic TIFF and BigTIFF, strips (not tiles), uncompressed or
+// It reads little-endian ("II") classic TIFF and BigTIFF, strips or tiles, uncompressed or
 // DEFLATE, no predictor, 32-bit IEEE float samples, planar or interleaved; the GeoTIFF pixel
 // scale and tie point; and GDAL's metadata tag. Anything else is an InputError naming the file
 // and the rule. Every offset and count is checked against the file before use, and the raster's
-// size against what its strips can hold (DEFLATE expands at most 1032 to 1), so a damaged or
+// size against what its strips or tiles can hold (DEFLATE expands at most 1032 to 1), so a damaged or
 // hostile file cannot make it read out of bounds or allocate without limit.
 #pragma once
 
@@ -27,8 +27,9 @@ struct FloatTiffInfo {
   std::string gdal_metadata;                ///< GDAL_METADATA (42112) XML; empty: absent
 };
 
-/// The raster a strip of rows at a time, every band: the memory it holds is one strip of each
-/// band (and the directory), not the raster, so a caller can convert rows as they come.
+/// The raster a strip of rows at a time (a row of tiles, in a tiled file), every band: the memory
+/// it holds is one strip of each band (and one tile, and the directory), not the raster, so a
+/// caller can convert rows as they come.
 class FloatTiffRows {
  public:
   /// Opens `path` and reads and checks its directory. Throws InputError naming `path`.
@@ -38,9 +39,9 @@ class FloatTiffRows {
   FloatTiffRows& operator=(const FloatTiffRows&) = delete;
 
   const FloatTiffInfo& info() const;
-  /// The next strip of rows, top first: rows `first` .. `first + count - 1`, band b's in
-  /// `rows[b]` (count * width floats, row `first` first). False after the last strip. Throws
-  /// InputError naming the file and the strip when a strip is damaged.
+  /// The next strip of rows (or row of tiles), top first: rows `first` .. `first + count - 1`,
+  /// band b's in `rows[b]` (count * width floats, row `first` first). False after the last.
+  /// Throws InputError naming the file and the strip or tile when one is damaged.
   bool next(int& first, int& count, std::vector<std::vector<float>>& rows);
 
  private:
