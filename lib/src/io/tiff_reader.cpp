@@ -214,10 +214,12 @@ struct FloatTiffRows::Impl {
     const std::uint64_t blocks = strips_down * across * (planar == 2 ? spp : 1);
     offsets = values(tiled ? 324 : 273);
     counts = values(tiled ? 325 : 279);
-    if (offsets.size() != blocks || counts.size() != blocks)
-      fail(std::string(tiled ? "tags 324 and 325 (TileOffsets, TileByteCounts) hold " : "tags 273 and 279 (StripOffsets, StripByteCounts) hold ") +
-           std::to_string(offsets.size()) + " and " + std::to_string(counts.size()) + (tiled ? " tiles" : " strips") +
-           "; the raster has " + std::to_string(blocks));
+    if (offsets.size() != blocks || counts.size() != blocks) {
+      const std::string tags =
+          tiled ? "tags 324 and 325 (TileOffsets, TileByteCounts)" : "tags 273 and 279 (StripOffsets, StripByteCounts)";
+      fail(tags + " hold " + std::to_string(offsets.size()) + " and " + std::to_string(counts.size()) +
+           (tiled ? " tiles" : " strips") + "; the raster has " + std::to_string(blocks));
+    }
 
     info.width = static_cast<int>(w);
     info.height = static_cast<int>(h);
