@@ -81,7 +81,7 @@ std::string percent(std::uint64_t part, std::uint64_t whole) {
 }
 std::string seconds_text(double t) {
   char b[32];
-  std::snprintf(b, sizeof b, "%.10g", t);
+  std::snprintf(b, sizeof b, "%.15g", t);
   return b;
 }
 
