@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdint>
 #include <cmath>
 #include <cstring>
 #include <numeric>
@@ -83,9 +84,12 @@ void check_pass_header(const std::string& path) {
   const auto size = static_cast<std::uint64_t>(st.st_size);
   const std::uint64_t avail = size > h.data_offset ? size - h.data_offset : 0;
   const std::uint64_t pb = h.point_bytes();
-  if (h.data == io::PcdData::kBinary && pb > 0 && h.points > avail / pb)
-    throw InputError(path + ": truncated: the header claims " + std::to_string(h.points) + " points of " +
-                     std::to_string(pb) + " bytes but the file holds " + std::to_string(avail) + " bytes of data");
+  if (h.data == io::PcdData::kBinary && pb > 0 && h.points > avail / pb) {
+    const bool wraps = h.points > UINT64_MAX / pb;
+    throw InputError(path + ": truncated: the header claims " + std::to_string(h.points) + " points (" +
+                     (wraps ? std::string("over 2^64") : std::to_string(h.points * pb)) + " bytes) but the file holds " +
+                     std::to_string(avail) + " bytes of data (" + std::to_string(avail / pb) + " whole points)");
+  }
 }
 
 Pass pass_from_table(io::PcdTable&& table, const std::string& source, std::size_t index) {
