@@ -96,7 +96,9 @@ void read_range_samples_csv(const std::string& path, std::vector<double>& y, std
     for (int k = 0; k < 2; ++k) {
       char* end = nullptr;
       v[k] = std::strtod(cells[idx[k]].c_str(), &end);
-      if (cells[idx[k]].empty() || (*end != '\0' && *end != '\r' && *end != ' ') || !std::isfinite(v[k]))
+      // Trailing blanks (and a CRLF line end) only: "1.5 junk" is not a number.
+      if (cells[idx[k]].empty() || end == cells[idx[k]].c_str() ||
+          std::string(end).find_first_not_of(" \t\r") != std::string::npos || !std::isfinite(v[k]))
         throw InputError(path + ":" + std::to_string(lineno) + ": column '" + (k ? "measured" : "true") + "': '" +
                          cells[idx[k]] + "' is not a finite number");
     }

@@ -3,6 +3,7 @@
 
 #include <glob.h>
 #include <sys/stat.h>
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -87,6 +88,15 @@ const OptionSchema& pose_sigma_schema() {
   return s;
 }
 
+const OptionSchema& top_level_schema() {
+  static const OptionSchema s = {
+      opt_bool("allow_empty_output", false,
+               "false: a run that keeps no return, or leaves more than half of its in-range returns without "
+               "a pose (a time-base mismatch?), fails with exit 3 before writing; true: it writes and warns"),
+  };
+  return s;
+}
+
 Override parse_override(const std::string& text) {
   const auto eq = text.find('=');
   if (eq == std::string::npos || eq == 0)
@@ -96,8 +106,8 @@ Override parse_override(const std::string& text) {
 
 namespace {
 
-const std::vector<std::string> kTopKeys = {"description", "rpy_order", "input",  "output_dir",
-                                           "mount",       "sensor",    "pose_sigma", "stages"};
+const std::vector<std::string> kTopKeys = {"description", "rpy_order",  "input",  "output_dir",        "mount",
+                                           "sensor",      "pose_sigma", "stages", "allow_empty_output"};
 const std::vector<std::string> kInputKeys = {"scans", "poses"};
 
 std::string node_kind(const YAML::Node& n) {
@@ -212,35 +222,161 @@ OptionValues validate_block(const Context& ctx, const YAML::Node& block, const O
   return values;
 }
 
-YAML::Node load_yaml(const std::string& text, const std::string& source) {
-  // Flow-style nesting ([[[... or {{{...) is checked before parsing: the parser's own guard only
-  // says "bad file", and a pipeline needs a handful of levels.
-  constexpr int kMaxDepth = 64;
-  int depth = 0, line = 1, col = 0;
-  bool quoted = false;
-  for (char ch : text) {
-    ++col;
-    if (ch == '\n') {
-      ++line;
-      col = 0;
-    } else if (ch == '"' || ch == '\'') {
-      quoted = !quoted;
-    } else if (!quoted && (ch == '[' || ch == '{')) {
-      if (++depth > kMaxDepth)
-        throw ConfigError(source + ":" + std::to_string(line) + ":" + std::to_string(col) +
-                          ": not valid YAML: nested more than " + std::to_string(kMaxDepth) + " levels deep");
-    } else if (!quoted && (ch == ']' || ch == '}')) {
-      depth = std::max(0, depth - 1);
-    }
+/// Walks the YAML event stream and refuses what yaml-cpp would silently accept or choke on:
+/// a key given twice in one mapping (at any depth), a second document, nesting deeper than
+/// kMaxDepth levels (block or flow: the node tree and its users recurse), a key that is itself
+/// a mapping or a list, and text that is not UTF-8. Each error names the source, the line, the
+/// key path and the rule.
+class StrictYamlCheck final : public YAML::EventHandler {
+ public:
+  static constexpr std::size_t kMaxDepth = 64;
+
+  /// `bytes_ok`: scalar values may hold bytes that are not UTF-8 (paths given on the command line).
+  StrictYamlCheck(std::string source, bool bytes_ok) : source_(std::move(source)), bytes_ok_(bytes_ok) {}
+
+  void OnDocumentStart(const YAML::Mark& mark) override {
+    if (++documents_ > 1)
+      throw ConfigError(at(mark) + ": a second YAML document begins here; a pipeline is one document "
+                                   "(remove the '---' line and what follows, or merge the two)");
   }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark& mark, YAML::anchor_t anchor) override {
+    if (anchor) anchored_[anchor] = kNullKey;
+    node(mark, kNullKey, false);
+  }
+  void OnAlias(const YAML::Mark& mark, YAML::anchor_t anchor) override {
+    auto it = anchored_.find(anchor);
+    // An alias of a mapping or a list as a key is refused like the mapping itself.
+    node(mark, it == anchored_.end() ? std::string() : it->second, it == anchored_.end());
+  }
+  void OnScalar(const YAML::Mark& mark, const std::string&, YAML::anchor_t anchor, const std::string& value) override {
+    const bool key = !stack_.empty() && stack_.back().map && stack_.back().expect_key;
+    if (!key && bytes_ok_) {
+    } else if (auto bad = invalid_utf8_offset(value)) {
+      const std::string path = key ? path_of_key(value) : child_path();
+      throw ConfigError(at(mark) + ": " + (key ? "key" : "the value of '" + path + "'") + ": byte " +
+                        std::to_string(*bad) + " (0x" + hex(value[*bad]) + ") is not valid UTF-8 (YAML text is " +
+                        "Unicode; a file name in other bytes can be matched by a glob or given with --set)");
+    }
+    if (anchor) anchored_[anchor] = value;
+    node(mark, value, false);
+  }
+  void OnSequenceStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
+    open(mark, false);
+  }
+  void OnSequenceEnd() override { stack_.pop_back(); }
+  void OnMapStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
+    open(mark, true);
+  }
+  void OnMapEnd() override { stack_.pop_back(); }
+
+ private:
+  static constexpr const char* kNullKey = "\x01null";  // the null key (`~:` or `: x`), apart from "null"
+
+  struct Frame {
+    bool map = false;
+    std::string path;            // of this container, dotted ("stages[1].sensor")
+    bool expect_key = true;      // map: the next node is a key
+    std::string key;             // map: the key whose value comes next
+    std::size_t index = 0;       // sequence: the next item's index
+    std::map<std::string, int> lines;  // map: key -> its line (1-based)
+  };
+
+  std::string at(const YAML::Mark& mark) const {
+    std::string s = source_;
+    if (mark.line >= 0) s += ":" + std::to_string(mark.line + 1) + ":" + std::to_string(mark.column + 1);
+    return s;
+  }
+  static std::string hex(char c) {
+    const char* d = "0123456789ABCDEF";
+    const auto u = static_cast<unsigned char>(c);
+    return {d[u >> 4], d[u & 15]};
+  }
+  static std::string shown(const std::string& key) { return key == kNullKey ? "null" : key; }
+  std::string path_of_key(const std::string& key) const {
+    const std::string& p = stack_.back().path;
+    return p.empty() ? shown(key) : p + "." + shown(key);
+  }
+  /// The path of the node that comes next (a value or a list item).
+  std::string child_path() const {
+    if (stack_.empty()) return "";
+    const Frame& f = stack_.back();
+    if (f.map) return path_of_key(f.key);
+    return f.path + "[" + std::to_string(f.index) + "]";
+  }
+
+  /// A node begins: a key of the mapping on top, or a value / list item.
+  void node(const YAML::Mark& mark, const std::string& text, bool container) {
+    if (stack_.empty()) return;
+    Frame& f = stack_.back();
+    if (!f.map) {
+      ++f.index;
+      return;
+    }
+    if (!f.expect_key) {  // a value: its events (if a container) come on a frame of their own
+      f.expect_key = true;
+      return;
+    }
+    if (container)
+      throw ConfigError(at(mark) + ": a key in '" + (f.path.empty() ? std::string("(top level)") : f.path) +
+                        "' is a mapping or a list; keys must be plain names (an unclosed '[' or '{' reads so too)");
+    const int line = mark.line + 1;
+    const auto [it, fresh] = f.lines.emplace(text, line);
+    if (!fresh)
+      throw ConfigError(at(mark) + ": duplicate key '" + path_of_key(text) + "': given at line " +
+                        std::to_string(it->second) + " and again at line " + std::to_string(line) +
+                        " (a key may appear once in a mapping; remove one)");
+    f.key = text;
+    f.expect_key = false;
+  }
+
+  void open(const YAML::Mark& mark, bool map) {
+    const bool is_key = !stack_.empty() && stack_.back().map && stack_.back().expect_key;
+    if (is_key) node(mark, "", true);  // throws
+    const std::string path = child_path();
+    node(mark, "", true);
+    if (stack_.size() >= kMaxDepth)
+      throw ConfigError(at(mark) + ": not valid YAML: nested more than " + std::to_string(kMaxDepth) +
+                        " levels deep (at '" + (path.size() > 60 ? path.substr(0, 60) + "..." : path) + "')");
+    Frame f;
+    f.map = map;
+    f.path = path;
+    stack_.push_back(std::move(f));
+  }
+
+  std::string source_;
+  bool bytes_ok_;
+  int documents_ = 0;
+  std::vector<Frame> stack_;
+  std::map<YAML::anchor_t, std::string> anchored_;
+};
+
+/// Runs StrictYamlCheck over `text` (throws ConfigError, or YAML::Exception for syntax errors).
+void check_yaml_strictly(const std::string& text, const std::string& source, bool bytes_ok) {
+  std::istringstream in(text);
+  YAML::Parser parser(in);
+  StrictYamlCheck check(source, bytes_ok);
+  while (parser.HandleNextDocument(check)) {
+  }
+}
+
+std::string yaml_error(const std::string& source, const YAML::Exception& e) {
+  std::ostringstream os;
+  os << source;
+  if (e.mark.line >= 0) os << ":" << e.mark.line + 1 << ":" << e.mark.column + 1;
+  os << ": not valid YAML: " << e.msg;
+  return os.str();
+}
+
+YAML::Node load_yaml(const std::string& text, const std::string& source) {
+  // The strict walk first: it bounds the depth before the tree is built (yaml-cpp's own guard
+  // only says "bad file", and a pipeline needs a handful of levels) and refuses duplicate keys
+  // and second documents, which YAML::Load would silently merge or drop.
   try {
+    check_yaml_strictly(text, source, false);
     return YAML::Load(text);
   } catch (const YAML::Exception& e) {
-    std::ostringstream os;
-    os << source;
-    if (e.mark.line >= 0) os << ":" << e.mark.line + 1 << ":" << e.mark.column + 1;
-    os << ": not valid YAML: " << e.msg;
-    throw ConfigError(os.str());
+    throw ConfigError(yaml_error(source, e));
   }
 }
 
@@ -258,11 +394,22 @@ void apply_override(YAML::Node root, const Override& ov, Context& ctx) {
     if (p.empty()) throw ConfigError("--set " + ov.key + "=" + ov.value + ": empty key component");
     parts.push_back(p);
   }
+  const std::string shown = "--set " + ov.key + "=" + ov.value;
+  if (auto bad = invalid_utf8_offset(ov.key))
+    throw ConfigError(shown + ": byte " + std::to_string(*bad) + " of the key is not valid UTF-8 (keys are UTF-8)");
+  // Paths are bytes on Linux: a file name that is not UTF-8 may be given for them; every other
+  // value (names, options) is text.
+  const bool path_key = ov.key == "output_dir" || ov.key == "input.poses" || ov.key == "input.scans";
+  if (auto bad = invalid_utf8_offset(ov.value); bad && !path_key)
+    throw ConfigError(shown + ": byte " + std::to_string(*bad) + " of the value of '" + ov.key +
+                      "' is not valid UTF-8 (only paths may hold other bytes)");
   YAML::Node value;
   try {
+    // The value is YAML too, held to the same rules as the file (one document, each key once).
+    check_yaml_strictly(ov.value, "--set " + ov.key, true);
     value = YAML::Load(ov.value);
   } catch (const YAML::Exception&) {
-    value = YAML::Node(ov.value);
+    value = YAML::Node(ov.value);  // not YAML: the text as it is
   }
   if (!value.IsDefined() || value.IsNull()) value = YAML::Node(ov.value);
   ctx.add_override(ov.key, ov.key + "=" + ov.value);
@@ -365,7 +512,14 @@ PipelineConfig build(YAML::Node root, Context& ctx, const LoadOptions& opts) {
     if (std::find(kTopKeys.begin(), kTopKeys.end(), k) == kTopKeys.end())
       fail(ctx.where(k, kv.first), "unknown key '" + k + "'" + did_you_mean(k, kTopKeys) +
                                        "; known keys: description, rpy_order, input, output_dir, "
-                                       "mount, sensor, pose_sigma, stages");
+                                       "mount, sensor, pose_sigma, stages, allow_empty_output");
+  }
+  {
+    YAML::Node top(YAML::NodeType::Map);
+    for (const auto& o : top_level_schema())
+      if (root[o.name]) top[o.name] = root[o.name];
+    const OptionValues v = validate_block(ctx, top, top_level_schema(), "pipeline", "");
+    cfg.allow_empty_output = v.get_bool("allow_empty_output");
   }
 
   if (root["rpy_order"]) {

@@ -143,7 +143,8 @@ std::optional<std::string> parse_option_value(const OptionSpec& spec, const std:
       errno = 0;
       char* end = nullptr;
       const long long v = std::strtoll(text.c_str(), &end, 10);
-      if (text.empty() || *end != '\0' || errno == ERANGE) return std::string("must be an integer");
+      if (text.empty() || *end != '\0' || errno == ERANGE || text.find_first_not_of("+-0123456789") != std::string::npos)
+        return std::string("must be an integer");
       if (auto e = check_bounds(spec, static_cast<double>(v))) return e;
       out = static_cast<std::int64_t>(v);
       return std::nullopt;
@@ -152,8 +153,11 @@ std::optional<std::string> parse_option_value(const OptionSpec& spec, const std:
       errno = 0;
       char* end = nullptr;
       const double v = std::strtod(text.c_str(), &end);
-      if (text.empty() || *end != '\0' || errno == ERANGE) return std::string("must be a number");
+      // Decimal only: strtod would also take leading blanks, hexadecimal and "nan"/"inf".
+      if (text.empty() || *end != '\0') return std::string("must be a number");
       if (!std::isfinite(v)) return std::string("must be a finite number");
+      if (errno == ERANGE || text.find_first_not_of("+-.0123456789eE") != std::string::npos)
+        return std::string("must be a number");
       if (auto e = check_bounds(spec, v)) return e;
       out = v;
       return std::nullopt;
@@ -167,6 +171,59 @@ std::optional<std::string> parse_option_value(const OptionSpec& spec, const std:
       return std::nullopt;
   }
   return std::string("has an unknown type");
+}
+
+std::optional<std::size_t> invalid_utf8_offset(const std::string& text) {
+  const auto* s = reinterpret_cast<const unsigned char*>(text.data());
+  const std::size_t n = text.size();
+  for (std::size_t i = 0; i < n;) {
+    const unsigned c = s[i];
+    if (c < 0x80) {
+      ++i;
+      continue;
+    }
+    std::size_t len = 0;
+    unsigned lo = 0x80, hi = 0xBF;  // the allowed range of the second byte
+    if (c >= 0xC2 && c <= 0xDF) len = 2;
+    else if (c == 0xE0) len = 3, lo = 0xA0;
+    else if (c == 0xED) len = 3, hi = 0x9F;  // no surrogates
+    else if (c >= 0xE1 && c <= 0xEF) len = 3;
+    else if (c == 0xF0) len = 4, lo = 0x90;
+    else if (c >= 0xF1 && c <= 0xF3) len = 4;
+    else if (c == 0xF4) len = 4, hi = 0x8F;  // not above U+10FFFF
+    else return i;
+    if (i + len > n) return i;
+    if (s[i + 1] < lo || s[i + 1] > hi) return i;
+    for (std::size_t k = 2; k < len; ++k)
+      if (s[i + k] < 0x80 || s[i + k] > 0xBF) return i;
+    i += len;
+  }
+  return std::nullopt;
+}
+
+std::optional<std::string> parse_number_list(const std::string& text, std::size_t count, std::vector<double>& out) {
+  std::vector<std::string> cells(1);
+  for (char ch : text) {
+    if (ch == ',') cells.emplace_back();
+    else cells.back() += ch;
+  }
+  if (cells.size() != count)
+    return "has " + std::to_string(cells.size()) + " comma-separated value" + (cells.size() == 1 ? "" : "s") +
+           ", needs " + std::to_string(count);
+  std::vector<double> v;
+  for (std::string c : cells) {
+    const auto b = c.find_first_not_of(" \t"), e = c.find_last_not_of(" \t");
+    c = b == std::string::npos ? "" : c.substr(b, e - b + 1);
+    errno = 0;
+    char* end = nullptr;
+    const double x = std::strtod(c.c_str(), &end);
+    if (c.empty() || *end != '\0' || errno == ERANGE || !std::isfinite(x) ||
+        c.find_first_not_of("+-.0123456789eE") != std::string::npos)
+      return "'" + c + "' is not a finite number";
+    v.push_back(x);
+  }
+  out = std::move(v);
+  return std::nullopt;
 }
 
 std::string describe_schema(const OptionSchema& schema) {

@@ -1,6 +1,11 @@
 #include "pcdp/pass.hpp"
 
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
+#include <cstdint>
 #include <cmath>
 #include <cstring>
 #include <numeric>
@@ -46,13 +51,9 @@ void permute(std::vector<T>& v, const std::vector<std::size_t>& order) {
   v.swap(out);
 }
 
-}  // namespace
-
-Pass pass_from_table(io::PcdTable&& table, const std::string& source, std::size_t index) {
-  const io::PcdHeader& h = table.header;
+/// The indices of the required fields in `h`; throws InputError for a missing or mistyped one.
+void required_fields(const io::PcdHeader& h, const std::string& source, int (&idx)[7]) {
   const auto fail = [&](const std::string& msg) -> void { throw InputError(source + ": " + msg); };
-
-  int idx[7];
   for (int r = 0; r < 7; ++r) {
     const Required& req = kRequired[r];
     idx[r] = h.field_index(req.name);
@@ -64,6 +65,38 @@ Pass pass_from_table(io::PcdTable&& table, const std::string& source, std::size_
       fail(std::string("field '") + req.name + "' has type " + type_text(f) + " but must be " +
            std::string(1, req.type) + std::to_string(req.size) + " (" + req.meaning + ")");
   }
+}
+
+}  // namespace
+
+void check_pass_header(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0)
+    throw InputError(path + ": cannot read the pass file (" + std::strerror(errno) + ")");
+  if (!S_ISREG(st.st_mode))
+    throw InputError(path + ": the pass file is not a regular file (a directory, FIFO or device cannot be a pass)");
+  if (::access(path.c_str(), R_OK) != 0)
+    throw InputError(path + ": cannot read the pass file (" + std::strerror(errno) + ")");
+  const io::PcdHeader h = io::read_pcd_header(path);
+  int idx[7];
+  required_fields(h, path, idx);
+  // The data a binary header claims must fit in the file (checked without overflow).
+  const auto size = static_cast<std::uint64_t>(st.st_size);
+  const std::uint64_t avail = size > h.data_offset ? size - h.data_offset : 0;
+  const std::uint64_t pb = h.point_bytes();
+  if (h.data == io::PcdData::kBinary && pb > 0 && h.points > avail / pb) {
+    const bool wraps = h.points > UINT64_MAX / pb;
+    throw InputError(path + ": truncated: the header claims " + std::to_string(h.points) + " points (" +
+                     (wraps ? std::string("over 2^64") : std::to_string(h.points * pb)) + " bytes) but the file holds " +
+                     std::to_string(avail) + " bytes of data (" + std::to_string(avail / pb) + " whole points)");
+  }
+}
+
+Pass pass_from_table(io::PcdTable&& table, const std::string& source, std::size_t index) {
+  const io::PcdHeader& h = table.header;
+  const auto fail = [&](const std::string& msg) -> void { throw InputError(source + ": " + msg); };
+  int idx[7];
+  required_fields(h, source, idx);
 
   const std::size_t n = h.points;
   Pass p;

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <ctime>
+#include <limits>
 #include <mutex>
 #include <optional>
 #include <nlohmann/json.hpp>
@@ -72,6 +74,78 @@ Pipeline Pipeline::prepare(PipelineConfig config) {
 }
 
 namespace {
+std::string percent(std::uint64_t part, std::uint64_t whole) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.1f %%", whole ? 100.0 * static_cast<double>(part) / static_cast<double>(whole) : 0.0);
+  return b;
+}
+std::string seconds_text(double t) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.15g", t);
+  return b;
+}
+
+/// The run-level checks of what the passes kept (docs/robustness.md, "silent success"): a run
+/// that keeps nothing, or leaves more than half of its in-range returns without a pose, is an
+/// InputError (exit 3) naming the cause and the fix, unless `allow_empty_output`; then, and
+/// for shares above kWarnShare, warnings. Called before any product is written or committed.
+void check_what_was_kept(const PipelineConfig& cfg, const PoseTrack* poses, const RunSummary& sum, double stamp_min,
+                         double stamp_max, std::vector<std::string>& warnings) {
+  constexpr double kWarnShare = 0.05;
+  const auto n = sum.input_returns;
+  const auto no_return = sum.labels[static_cast<std::size_t>(Label::kNoReturn)];
+  const auto oor = sum.labels[static_cast<std::size_t>(Label::kOutOfRange)];
+  const auto no_pose = sum.labels[static_cast<std::size_t>(Label::kNoPose)];
+  const auto kept = sum.labels[static_cast<std::size_t>(Label::kKept)];
+  const std::uint64_t returned = n - no_return;  // returns with a range
+  const std::uint64_t in_range = returned - oor;  // returns register could place, given a pose
+  const std::string allow = "; set allow_empty_output: true to write such a run anyway";
+  std::vector<std::string> errors;
+
+  if (no_pose > 0 && in_range > 0) {
+    std::string why = std::to_string(no_pose) + " of " + std::to_string(in_range) + " in-range returns (" +
+                      percent(no_pose, in_range) + ") have no pose";
+    if (poses && poses->size() > 0) {
+      why += ": the pose file " + cfg.poses + " spans " + seconds_text(poses->begin_stamp()) + " to " +
+             seconds_text(poses->end_stamp()) + " s, the scans' stamps run " + seconds_text(stamp_min) + " to " +
+             seconds_text(stamp_max) + " s";
+      if (stamp_max < poses->begin_stamp() || stamp_min > poses->end_stamp())
+        why += "; no return falls within the pose file's span: a time-base mismatch (seconds vs. nanoseconds, "
+               "GPS vs. Unix time)? Give poses and scans one clock";
+      else
+        why += "; the poses cover part of the run, or have gaps longer than the register stage's max_pose_gap";
+    }
+    if (no_pose * 2 > in_range) errors.push_back(why);
+    else if (static_cast<double>(no_pose) > kWarnShare * static_cast<double>(in_range)) warnings.push_back("run: " + why);
+  }
+  if (kept == 0 && errors.empty()) {
+    std::string why;
+    if (n == 0) {
+      why = "the " + std::to_string(sum.passes.size()) + " pass file(s) hold no return";
+    } else if (in_range == 0) {
+      why = "no return of " + std::to_string(n) + " is in range: " + std::to_string(no_return) + " have no return and " +
+            std::to_string(oor) + " fall outside sensor.range_min to range_max (" + format_value(cfg.sensor.range_min) +
+            " to " + format_value(cfg.sensor.range_max) + " m after the range calibration k = " +
+            format_value(cfg.sensor.range_k) + ", b = " + format_value(cfg.sensor.range_b) +
+            " m): check those keys and the unit of the ranges (metres)";
+    } else {
+      why = "no return of " + std::to_string(n) + " is kept; labels:";
+      for (std::size_t l = 1; l < kLabelCount; ++l)
+        if (sum.labels[l]) why += " " + std::string(label_name(static_cast<Label>(l))) + "=" + std::to_string(sum.labels[l]);
+      why += ": check the options of the stages that rejected them";
+    }
+    errors.push_back("the run keeps nothing: " + why);
+  } else if (returned > 0 && static_cast<double>(oor) > kWarnShare * static_cast<double>(returned)) {
+    warnings.push_back("run: " + std::to_string(oor) + " of " + std::to_string(returned) + " returns (" +
+                       percent(oor, returned) + ") fall outside sensor.range_min to range_max (" +
+                       format_value(cfg.sensor.range_min) + " to " + format_value(cfg.sensor.range_max) + " m)");
+  }
+  for (const auto& e : errors) {
+    if (!cfg.allow_empty_output) throw InputError(cfg.source + ": " + e + allow);
+    warnings.push_back("run: " + e);
+  }
+}
+
 /// One pass after the part of the chain a worker thread may run (see Stage::concurrent/split).
 struct Processed {
   Pass pass;
@@ -130,6 +204,9 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
     sum.stages.push_back(r);
   }
 
+  // What can be checked cheaply is checked before the heavy work (a prepass reads every pass):
+  // each pass file is a regular readable file whose header parses with the required fields.
+  for (const auto& f : cfg.scans) check_pass_header(f);
   io::StagedOutputs out(cfg.output_dir);
   io::ReturnsWriter returns(out.staged_path("returns.pcd"));
   io::CloudWriter cloud(out.staged_path("cloud.pcd"));
@@ -217,6 +294,7 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   }
   std::int64_t last_line = -1;
   std::string last_file;
+  double stamp_min = std::numeric_limits<double>::infinity(), stamp_max = -stamp_min;
   std::optional<PhaseTimer> phase;
   phase.emplace(sum, "passes");
   detail::ordered_parallel<Processed>(
@@ -263,6 +341,8 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
                              " (line indices are unique within a run and increase with time)");
           last_line = pass.line.back();
           last_file = pass.source;
+          stamp_min = std::min(stamp_min, pass.stamp.front());  // stamps increase along a pass
+          stamp_max = std::max(stamp_max, pass.stamp.back());
         }
         for (std::size_t s = 0; s < stages_.size(); ++s) {
           emit(cfg.stages[s].name);
@@ -294,6 +374,9 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   // (each copies its body behind the header) are two more parts, last: on 2 threads they run
   // beside elevation.tif, the longest part, instead of after it. A part may hand tasks to the
   // WorkShare (elevation.tif compresses one group of bands per task): a thread with no part left helps.
+  // Every label is final now: a run that kept nothing stops here, before any product is written.
+  std::vector<std::string> run_warnings;
+  check_what_was_kept(cfg, context_.poses.get(), sum, stamp_min, stamp_max, run_warnings);
   phase.emplace(sum, "finish");  // (the passes' timer records as it is replaced)
   LockedSink sink(out);
   std::vector<std::pair<std::size_t, std::size_t>> parts;  // (stage, part); stage == size: a writer
@@ -325,6 +408,7 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   if (returns.points() != sum.input_returns)
     throw std::logic_error("returns.pcd holds " + std::to_string(returns.points()) + " returns, input had " +
                            std::to_string(sum.input_returns));
+  sum.warnings = run_warnings;
   for (const auto& r : sum.stages)
     for (const auto& w : r.warnings) sum.warnings.push_back(r.name + ": " + w);
   sum.outputs = out.final_paths();
@@ -377,6 +461,7 @@ std::string report_json(const PipelineConfig& cfg, const RunSummary& sum) {
   c["rpy_order"] = rpy_order_name(cfg.rpy_order);
   c["input"] = {{"scans", cfg.scans}, {"poses", cfg.poses}};
   c["output_dir"] = cfg.output_dir;
+  c["allow_empty_output"] = cfg.allow_empty_output;
   for (const auto& [name, vals] : cfg.blocks) c[name] = values_json(vals);
   c["stages"] = nlohmann::json::array();
   for (const auto& sc : cfg.stages) {
@@ -412,7 +497,9 @@ std::string report_json(const PipelineConfig& cfg, const RunSummary& sum) {
   for (const auto& ph : sum.phases)
     j["phases"].push_back({{"phase", ph.name}, {"seconds", ph.seconds}, {"cpu_seconds", ph.cpu_seconds}});
   j["threads"] = sum.threads;
-  return j.dump(2) + "\n";
+  // Paths are bytes on Linux: a file name that is not UTF-8 (matched by a glob, or given with
+  // --output-dir or --set) is written with U+FFFD in place of its invalid bytes, never a failure.
+  return j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
 }
 
 }  // namespace pcdp

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <iomanip>
 #include <sstream>
 
 #include "pcdp/config.hpp"
@@ -97,10 +98,51 @@ Eigen::Vector3d vec3(const std::string& src, const YAML::Node& n, const std::str
     char* end = nullptr;
     const std::string t = n[i].IsScalar() ? n[i].Scalar() : "";
     v[static_cast<int>(i)] = std::strtod(t.c_str(), &end);
-    if (t.empty() || *end != '\0' || !std::isfinite(v[static_cast<int>(i)]))
+    if (t.empty() || *end != '\0' || !std::isfinite(v[static_cast<int>(i)]) ||
+        t.find_first_not_of("+-.0123456789eE") != std::string::npos)
       throw ConfigError(detail::where(src, n) + ": " + what + ": '" + t + "' is not a finite number");
   }
   return v;
+}
+}  // namespace
+
+namespace {
+/// simulate holds every pass in memory and casts `subrays` rays per return against the terrain
+/// and every box: the work is bounded before it starts (docs/simulator.md, "Limits"), so a
+/// scene within the per-key limits that could not finish in about a minute is refused up front.
+void check_scene_work(const std::string& src, const sim::SimConfig& c) {
+  constexpr double kMaxReturns = 5e6;     // ~70 bytes each in memory, plus the written files
+  constexpr double kMaxRayWork = 1e7;     // terrain-ray equivalents: about 30 s on one core
+  constexpr double kBoxesPerTerrain = 160;  // a box test costs about 1/160 of a terrain intersection
+  constexpr double kMaxPoses = 2e6;       // rows of poses.csv
+  const auto num = [](double v) {
+    std::ostringstream os;
+    os << std::setprecision(3) << v;
+    return os.str();
+  };
+  const double returns = static_cast<double>(c.passes) * c.lines_per_pass * c.scanner.beams;
+  const std::string product = std::to_string(c.passes) + " x " + std::to_string(c.lines_per_pass) + " x " +
+                              std::to_string(c.scanner.beams);
+  if (returns > kMaxReturns)
+    throw ConfigError(src + ": the scene needs passes x lines_per_pass x scanner.beams = " + product + " = " +
+                      num(returns) + " returns; simulate holds them in memory and is limited to " + num(kMaxReturns) +
+                      ": reduce passes, lines_per_pass or scanner.beams (or simulate in parts with other t0 and seed)");
+  const double boxes = static_cast<double>(c.scene.boxes.size());
+  const double work = returns * c.scanner.subrays * (1.0 + boxes / kBoxesPerTerrain);
+  if (work > kMaxRayWork)
+    throw ConfigError(src + ": the scene needs passes x lines_per_pass x scanner.beams x scanner.subrays = " + product +
+                      " x " + std::to_string(c.scanner.subrays) + " = " +
+                      num(returns * c.scanner.subrays) + " rays" +
+                      (boxes > 0 ? " against the terrain and " + num(boxes) + " boxes (" + num(work) + " ray equivalents)"
+                                 : std::string()) +
+                      "; simulate is limited to " + num(kMaxRayWork) +
+                      " (about half a minute): reduce passes, lines_per_pass, scanner.beams, scanner.subrays or the boxes");
+  const double seconds = static_cast<double>(c.passes) * c.lines_per_pass * c.scanner.line_period;
+  const double poses = seconds * c.motion.pose_rate;
+  if (poses > kMaxPoses)
+    throw ConfigError(src + ": the scene lasts passes x lines_per_pass x scanner.line_period = " + num(seconds) +
+                      " s, at motion.pose_rate " + num(c.motion.pose_rate) + " Hz that is " + num(poses) +
+                      " poses; simulate is limited to " + num(kMaxPoses) + ": lower motion.pose_rate or shorten the scene");
 }
 }  // namespace
 
@@ -207,15 +249,17 @@ sim::SimConfig load_scene_from_string(const std::string& yaml, const std::string
       if ((box.max - box.min).minCoeff() <= 0.0)
         throw ConfigError(detail::where(src, b) + ": box: max must exceed min on every axis");
       if (b["reflectivity"]) {
-        const std::string t = b["reflectivity"].Scalar();
-        char* end = nullptr;
-        box.reflectivity = std::strtod(t.c_str(), &end);
-        if (*end != '\0' || !(box.reflectivity >= 0.0 && box.reflectivity <= 1.0))
+        const std::string t = b["reflectivity"].IsScalar() ? b["reflectivity"].Scalar() : "";
+        OptionValue v;
+        if (!parse_option_value(opt_double("reflectivity", 0.0, 0.0, 1.0, "", ""), t, v))
+          box.reflectivity = std::get<double>(v);
+        else
           throw ConfigError(detail::where(src, b["reflectivity"]) + ": box: reflectivity '" + t + "' must be in [0, 1]");
       }
       c.scene.boxes.push_back(box);
     }
   }
+  check_scene_work(src, c);
   return c;
 }
 

@@ -157,11 +157,14 @@ int run_scaling(const BenchArgs& a, const fs::path& scratch) {
   std::stringstream ss(a.scaling);
   for (std::string s; std::getline(ss, s, ',');) {
     int v = 0;
+    std::size_t used = 0;
     try {
-      v = std::stoi(s);
+      v = std::stoi(s, &used);
     } catch (const std::exception&) {
-      throw ConfigError("--scaling: '" + s + "' is not a number of passes");
+      used = 0;
     }
+    if (used == 0 || used != s.size())  // "4x" is not 4
+      throw ConfigError("--scaling: '" + s + "' is not a number of passes");
     if (v < 1 || v > 1000) throw ConfigError("--scaling: " + s + " passes is outside 1 .. 1000");
     sizes.push_back(v);
   }

@@ -74,6 +74,7 @@ int cmd_run(const RunArgs& a) {
   // ray casts (work_share.hpp) and write the products at the end.
   const RunSummary s = p.run(progress, threads_or_cores(a.threads));
   if (tty) std::fprintf(stderr, "\r\033[K");
+  for (const auto& w : s.warnings) std::cerr << "warning: " << w << "\n";  // also in report.json, even with --quiet
   if (!a.quiet) {
     std::cout << "pcd_pipeline: " << s.passes.size() << " pass(es), " << s.input_returns << " returns, "
               << s.labels[0] << " kept, in " << s.seconds << " s on " << s.threads << " thread(s)\n";
@@ -84,7 +85,6 @@ int cmd_run(const RunArgs& a) {
     for (const auto& st : s.stages)
       std::cout << "  " << st.name << " (" << st.type << "): " << st.in << " -> " << st.out << " kept, "
                 << st.seconds << " s\n";
-    for (const auto& w : s.warnings) std::cout << "warning: " << w << "\n";
     std::cout << "outputs in " << std::filesystem::absolute(s.output_dir).lexically_normal().string() << ":";
     for (const auto& o : s.outputs) std::cout << " " << o.substr(o.find_last_of('/') + 1);
     std::cout << "\n";
@@ -244,9 +244,9 @@ int cmd_clean_cloud(const CleanCloudArgs& a) {
   if (ix < 0 || iy < 0 || iz < 0) throw InputError(a.input + ": needs fields x, y, z");
   Eigen::Vector3d vp(t.header.viewpoint[0], t.header.viewpoint[1], t.header.viewpoint[2]);
   if (!a.viewpoint.empty()) {
-    double v[3];
-    if (std::sscanf(a.viewpoint.c_str(), "%lf,%lf,%lf", &v[0], &v[1], &v[2]) != 3)
-      throw ConfigError("clean-cloud: --viewpoint '" + a.viewpoint + "' must be x,y,z in metres");
+    std::vector<double> v;
+    if (const auto err = parse_number_list(a.viewpoint, 3, v))
+      throw ConfigError("clean-cloud: --viewpoint '" + a.viewpoint + "' must be x,y,z in metres (it " + *err + ")");
     vp = {v[0], v[1], v[2]};
   }
   const std::size_t n = t.header.points;
@@ -440,7 +440,8 @@ int cmd_docs() {
     std::cout << "### `" << s.type << "`\n\n" << s.summary << "\n\n" << schema_markdown(s.schema) << "\n";
   std::cout << "## Pipeline blocks\n\n";
   const std::pair<const char*, const OptionSchema*> blocks[] = {
-      {"sensor", &sensor_schema()}, {"mount", &mount_schema()}, {"pose_sigma", &pose_sigma_schema()}};
+      {"sensor", &sensor_schema()}, {"mount", &mount_schema()}, {"pose_sigma", &pose_sigma_schema()},
+      {"top_level", &top_level_schema()}};
   for (const auto& [name, sch] : blocks) std::cout << "### `" << name << "`\n\n" << schema_markdown(*sch) << "\n";
   std::cout << "## Scene blocks (`pcd_pipeline simulate`)\n\n";
   const std::pair<const char*, const OptionSchema*> scene[] = {
@@ -533,7 +534,8 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
 int cmd_describe(const std::string& what) {
   const std::vector<std::pair<std::string, const OptionSchema*>> blocks = {
       {"sensor", &sensor_schema()},   {"mount", &mount_schema()},   {"pose_sigma", &pose_sigma_schema()},
-      {"scanner", &scanner_schema()}, {"motion", &motion_schema()}, {"terrain", &terrain_schema()}};
+      {"scanner", &scanner_schema()}, {"motion", &motion_schema()}, {"terrain", &terrain_schema()},
+      {"top_level", &top_level_schema()}};
   for (const auto& [name, sch] : blocks)
     if (what == name) {
       std::cout << what << " block\n\n" << describe_schema(*sch);
@@ -546,7 +548,7 @@ int cmd_describe(const std::string& what) {
     for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
     for (const auto& b : blocks) names.push_back(b.first);
     throw ConfigError("describe: unknown stage '" + what + "'" + did_you_mean(what, names) + "; stages: " + list +
-                      "; blocks: sensor, mount, pose_sigma (pipelines), scanner, motion, terrain (scenes)");
+                      "; blocks: sensor, mount, pose_sigma, top_level (pipelines), scanner, motion, terrain (scenes)");
   }
   std::cout << info->type << ": " << info->summary << "\n\n" << describe_schema(info->schema);
   return 0;

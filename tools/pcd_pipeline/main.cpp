@@ -31,7 +31,7 @@ int main(int argc, char** argv) {
   add_run_options(validate);
   CLI::App* stages = app.add_subcommand("stages", "list the built-in stages");
   std::string describe_what;
-  CLI::App* describe = app.add_subcommand("describe", "print the option schema of a stage (or of sensor, mount, pose_sigma)");
+  CLI::App* describe = app.add_subcommand("describe", "print the option schema of a stage (or of sensor, mount, pose_sigma, top_level)");
   describe->add_option("stage", describe_what, "stage type or block name")->required();
 
   std::string scene, sim_out;

@@ -65,6 +65,9 @@ struct PipelineConfig {
   SensorParams sensor;
   PoseSigma pose_sigma;
   std::vector<StageConfig> stages;
+  /// A run that keeps no return, or leaves most in-range returns without a pose, is a data error
+  /// unless this is set (top-level key `allow_empty_output`, see top_level_schema()).
+  bool allow_empty_output = false;
   /// Validated values of each fixed block ("sensor", "mount", "pose_sigma"), for the report.
   std::vector<std::pair<std::string, OptionValues>> blocks;
 };
@@ -73,6 +76,8 @@ struct PipelineConfig {
 const OptionSchema& sensor_schema();
 const OptionSchema& mount_schema();
 const OptionSchema& pose_sigma_schema();
+/// Schema of the top-level scalar options of a pipeline (`allow_empty_output`).
+const OptionSchema& top_level_schema();
 
 /// A `--set key=value` override. `key` is dotted: sensor.min_amplitude, input.scans,
 /// output_dir, stages.<instance name>.<option>.

@@ -74,6 +74,15 @@ class OptionValues {
 std::optional<std::string> parse_option_value(const OptionSpec& spec, const std::string& text,
                                               OptionValue& out);
 
+/// The byte offset of the first byte of `text` that is not valid UTF-8 (overlong forms,
+/// surrogates and code points above U+10FFFF count as invalid), or nullopt when all of it is.
+std::optional<std::size_t> invalid_utf8_offset(const std::string& text);
+
+/// Parses exactly `count` comma-separated finite numbers ("-10,-10,20,10"), nothing before,
+/// between or after them but optional blanks around each. On failure returns the rule broken
+/// ("has 5 values, needs 4", "'10junk' is not a number"); on success fills `out`.
+std::optional<std::string> parse_number_list(const std::string& text, std::size_t count, std::vector<double>& out);
+
 /// A multi-line table of a schema (name, type, default, bounds, unit, doc), for `describe`.
 std::string describe_schema(const OptionSchema& schema);
 /// The same as a Markdown table, for the generated reference (docs/stages.md).

@@ -56,6 +56,11 @@ struct Pass {
 /// and the line/beam of the first offence.
 Pass pass_from_table(io::PcdTable&& table, const std::string& source, std::size_t index);
 
+/// The cheap part of read_pass, for checking every pass before the heavy work: the file is a
+/// regular, readable file, its header parses, has the required fields with their types, and
+/// (binary) the data it claims fits in the file. Reads the header only. Throws InputError.
+void check_pass_header(const std::string& path);
+
 /// read_pcd + pass_from_table.
 Pass read_pass(const std::string& path, std::size_t index);
 

@@ -127,10 +127,13 @@ StageInfo fuse_elevation_stage_info() {
             p.min_support = static_cast<std::uint32_t>(o.get_int("min_support"));
             const std::string ext = o.get_string("extent");
             if (!ext.empty()) {
-              if (std::sscanf(ext.c_str(), "%lf,%lf,%lf,%lf", &p.xmin, &p.ymin, &p.xmax, &p.ymax) != 4 || !(p.xmax > p.xmin) ||
-                  !(p.ymax > p.ymin))
+              std::vector<double> v;
+              const auto err = parse_number_list(ext, 4, v);
+              if (!err) p.xmin = v[0], p.ymin = v[1], p.xmax = v[2], p.ymax = v[3];
+              if (err || !(p.xmax > p.xmin) || !(p.ymax > p.ymin))
                 throw ConfigError(sc.where + ": stage '" + sc.name + "' (fuse_elevation): option 'extent' = '" + ext +
-                                  "' must be xmin,ymin,xmax,ymax with xmax > xmin and ymax > ymin");
+                                  "' must be xmin,ymin,xmax,ymax in metres with xmax > xmin and ymax > ymin" +
+                                  (err ? " (it " + *err + ")" : ""));
               p.has_extent = true;
             }
             const double s = ctx.config->sensor.range_sigma;
