@@ -12,6 +12,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "pcdp/errors.hpp"
+#include "pcdp/io/input_file.hpp"
 
 namespace pcdp {
 
@@ -65,6 +66,7 @@ RangeCalibration fit_range_calibration(const std::vector<double>& y, const std::
 }
 
 void read_range_samples_csv(const std::string& path, std::vector<double>& y, std::vector<double>& z) {
+  io::require_regular_file(path, "range sample file");
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot open (" + std::strerror(errno) + ")");
   std::string line;

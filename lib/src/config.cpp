@@ -16,6 +16,7 @@
 #include <sstream>
 
 #include "pcdp/errors.hpp"
+#include "pcdp/io/input_file.hpp"
 #include "pcdp/stage.hpp"
 
 namespace fs = std::filesystem;
@@ -453,12 +454,14 @@ void apply_override(YAML::Node root, const Override& ov, Context& ctx) {
 
 bool has_glob_chars(const std::string& p) { return p.find_first_of("*?[") != std::string::npos; }
 
+// Up front, before any reading: the file must exist and be a regular file (not a FIFO, device,
+// socket or directory, and not a symlink loop), so that no reader blocks or reads without end.
 void check_input_file(const std::string& where, const std::string& key, const std::string& path) {
   struct stat st {};
-  if (::stat(path.c_str(), &st) != 0)
+  if (::stat(path.c_str(), &st) != 0 && errno == ENOENT)
     throw InputError(where + ": " + key + ": file '" + path + "' does not exist");
-  if (S_ISDIR(st.st_mode))
-    throw InputError(where + ": " + key + ": '" + path + "' is a directory, not a file");
+  const std::string problem = io::regular_file_problem(path, key == "input.poses" ? "pose file" : "pass file");
+  if (!problem.empty()) throw InputError(where + ": " + key + ": '" + path + "' " + problem);
 }
 
 std::vector<std::string> expand_scans(const std::string& where, const std::vector<std::string>& patterns,
@@ -478,15 +481,22 @@ std::vector<std::string> expand_scans(const std::string& where, const std::vecto
     ::globfree(&g);
     std::sort(matched.begin(), matched.end());  // lexicographic, whatever the locale (DESIGN.md)
     matched.erase(std::remove_if(matched.begin(), matched.end(),
-                                 [](const std::string& m) { return fs::is_directory(m); }),
+                                 [](const std::string& m) {
+                                   std::error_code ec;  // a symlink loop is no directory: refused below
+                                   return fs::is_directory(m, ec);
+                                 }),
                   matched.end());
     if (matched.empty() && check) throw InputError(where + ": input.scans: no file matches '" + p + "'");
+    if (check)
+      for (const auto& m : matched) check_input_file(where, "input.scans", m);
     out.insert(out.end(), matched.begin(), matched.end());
   }
   if (check) {
     std::set<std::string> seen;
     for (const auto& f : out) {
-      const std::string canon = fs::weakly_canonical(f).string();
+      std::error_code ec;
+      std::string canon = fs::weakly_canonical(f, ec).string();
+      if (ec) canon = fs::absolute(f, ec).lexically_normal().string();
       if (!seen.insert(canon).second)
         throw InputError(where + ": input.scans: pass file '" + f +
                          "' is listed twice (line indices must be unique within a run)");
@@ -653,8 +663,10 @@ PipelineConfig load_pipeline_from_string(const std::string& yaml, const std::str
 }
 
 PipelineConfig load_pipeline(const std::string& path, const LoadOptions& opts) {
-  std::error_code ec;
-  if (fs::is_directory(path, ec)) throw ConfigError(path + ": is a directory, not a pipeline file");
+  if (const std::string problem = io::regular_file_problem(path, "pipeline file"); !problem.empty()) {
+    const bool missing = problem.rfind("cannot open", 0) == 0;  // "cannot read ...": the wording for a missing file
+    throw ConfigError(path + ": " + (missing ? "cannot read" + problem.substr(11) : problem));
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) throw ConfigError(path + ": cannot read the pipeline file (" + std::strerror(errno) + ")");
   std::ostringstream ss;

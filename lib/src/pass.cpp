@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <cmath>
 #include <cstring>
+#include <new>
 #include <numeric>
 
 #include "pcdp/errors.hpp"
@@ -199,6 +200,12 @@ Pass pass_from_table(io::PcdTable&& table, const std::string& source, std::size_
   return p;
 }
 
-Pass read_pass(const std::string& path, std::size_t index) { return pass_from_table(io::read_pcd(path), path, index); }
+Pass read_pass(const std::string& path, std::size_t index) {
+  try {
+    return pass_from_table(io::read_pcd(path), path, index);
+  } catch (const std::bad_alloc&) {  // an input too large for this machine is a data problem, not a bug
+    throw InputError(path + ": out of memory while reading this pass (free memory, or split the pass)");
+  }
+}
 
 }  // namespace pcdp

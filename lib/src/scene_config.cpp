@@ -11,6 +11,7 @@
 
 #include "pcdp/config.hpp"
 #include "pcdp/errors.hpp"
+#include "pcdp/io/input_file.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
 
 namespace pcdp {
@@ -264,6 +265,8 @@ sim::SimConfig load_scene_from_string(const std::string& yaml, const std::string
 }
 
 sim::SimConfig load_scene(const std::string& path) {
+  if (const std::string problem = io::regular_file_problem(path, "scene file"); !problem.empty())
+    throw ConfigError(path + ": " + problem);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw ConfigError(path + ": cannot read the scene file (" + std::strerror(errno) + ")");
   std::ostringstream ss;

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "pcdp/errors.hpp"
+#include "pcdp/io/input_file.hpp"
 
 namespace pcdp::io {
 
@@ -34,6 +35,7 @@ Eigen::Isometry3d read_3dtk_pose(const std::string& scan, bool use_frames) {
   Eigen::Vector3d t_uos;
   if (use_frames) {
     const std::string path = sibling(scan, ".frames");
+    require_regular_file(path, "slam6D frames file");
     std::ifstream in(path);
     if (!in) throw InputError(path + ": cannot open the slam6D frames file");
     std::string line, last;
@@ -52,6 +54,7 @@ Eigen::Isometry3d read_3dtk_pose(const std::string& scan, bool use_frames) {
     t_uos = {m[12], m[13], m[14]};
   } else {
     const std::string path = sibling(scan, ".pose");
+    require_regular_file(path, "3DTK pose file");
     std::ifstream in(path);
     double v[6];
     for (double& x : v)
@@ -68,6 +71,7 @@ Eigen::Isometry3d read_3dtk_pose(const std::string& scan, bool use_frames) {
 Imported3dtk import_3dtk(const std::vector<std::string>& scans, bool use_frames) {
   Imported3dtk out;
   for (std::size_t k = 0; k < scans.size(); ++k) {
+    require_regular_file(scans[k], "3DTK scan");
     std::ifstream in(scans[k]);
     if (!in) throw InputError(scans[k] + ": cannot open the 3DTK scan");
     std::vector<Eigen::Vector3d> pts;

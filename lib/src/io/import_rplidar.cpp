@@ -9,6 +9,7 @@
 #include <map>
 
 #include "pcdp/errors.hpp"
+#include "pcdp/io/input_file.hpp"
 
 namespace pcdp::io {
 
@@ -60,6 +61,7 @@ std::vector<std::string> split(const std::string& line) {
 }
 
 Csv read_csv(const std::string& path) {
+  require_regular_file(path, "CSV export of a LaserScan bag");
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot open (expected the CSV export of a LaserScan bag)");
   Csv c;

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "pcdp/errors.hpp"
+#include "pcdp/io/input_file.hpp"
 #include "pcdp/io/pcd.hpp"
 
 namespace pcdp::io {
@@ -307,6 +308,7 @@ Eigen::Matrix3d rpy_matrix(double roll, double pitch, double yaw) {  // octomath
 }
 
 void read_scan_ascii(const std::string& path, std::vector<Scan>& scans) {
+  require_regular_file(path, "scan file");
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot open the scan file");
   std::string line;
@@ -343,6 +345,7 @@ void read_scan_ascii(const std::string& path, std::vector<Scan>& scans) {
 
 /// Binary ScanGraph (octomap ScanGraph::readBinary, little-endian).
 void read_graph(const std::string& path, std::vector<Scan>& scans) {
+  require_regular_file(path, "scan graph");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path + ": cannot open the scan graph");
   const std::string data((std::istreambuf_iterator<char>(in)), {});
@@ -426,6 +429,7 @@ ImportedScans import_octomap(const std::vector<std::string>& files, const Import
 }
 
 void read_ply(const std::string& path, std::vector<Eigen::Vector3d>& xyz, std::vector<float>& intensity) {
+  require_regular_file(path, "PLY file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path + ": cannot open the PLY file");
   std::string line, format;

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <set>
 
 #include "pcdp/errors.hpp"
 #include "pcdp/pass.hpp"
@@ -28,6 +29,26 @@ std::uint8_t* put(std::uint8_t* dst, T v) {
   return dst + sizeof(T);
 }
 
+std::vector<PcdField> cloud_fields();
+
+// An input extra field named like a field of returns.pcd or cloud.pcd would make a file with that
+// name twice, which no PCD reader accepts: it is written as input_<name> (the prefix repeated until
+// the name is free). Other extra fields keep their names.
+std::vector<PcdField> output_extra_fields(const std::vector<PcdField>& extra) {
+  std::set<std::string> reserved;
+  for (const auto& f : base_fields(true)) reserved.insert(f.name);
+  for (const auto& f : cloud_fields()) reserved.insert(f.name);
+  std::set<std::string> taken = reserved;
+  for (const auto& f : extra) taken.insert(f.name);
+  std::vector<PcdField> out = extra;
+  for (auto& f : out) {
+    if (!reserved.count(f.name)) continue;
+    do f.name = "input_" + f.name;
+    while (!taken.insert(f.name).second);
+  }
+  return out;
+}
+
 std::uint8_t* put_common(std::uint8_t* d, const Pass& p, std::size_t i) {
   d = put(d, static_cast<float>(p.x[i]));
   d = put(d, static_cast<float>(p.y[i]));
@@ -49,7 +70,8 @@ void ReturnsWriter::append(const Pass& pass) {
     for (const auto& e : pass.extra) extra_.push_back(e.field);
     extra_source_ = pass.source;
     auto fields = base_fields(true);
-    fields.insert(fields.end(), extra_.begin(), extra_.end());
+    const auto renamed = output_extra_fields(extra_);
+    fields.insert(fields.end(), renamed.begin(), renamed.end());
     writer_ = std::make_unique<PcdWriter>(path_, fields);
   } else {
     bool same = pass.extra.size() == extra_.size();

@@ -2,14 +2,17 @@
 
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <limits>
+#include <map>
 #include <sstream>
 
 #include "pcdp/errors.hpp"
+#include "pcdp/io/input_file.hpp"
 
 namespace pcdp::io {
 
@@ -73,6 +76,9 @@ bool store_ascii(const PcdField& f, const char* tok, std::uint8_t* dst) {
   if (f.type == 'F') {
     const double v = std::strtod(tok, &end);
     if (*end != '\0') return false;
+    // A finite number too large for the field is refused, not stored as inf ("inf" itself is kept).
+    if (errno == ERANGE && std::isinf(v)) return false;
+    if (f.size == 4 && std::isfinite(v) && std::fabs(v) >= 0x1.ffffffp+127) return false;  // rounds to inf as float
     if (f.size == 4) {
       const float x = static_cast<float>(v);
       std::memcpy(dst, &x, 4);
@@ -137,7 +143,21 @@ double field_value(const PcdField& f, const std::uint8_t* p) {
   }
 }
 
+namespace {
+
+constexpr std::size_t kMaxFields = 10000;  // far above any sensor's; bounds the header's work
+
+bool checked_mul(std::uint64_t a, std::uint64_t b, std::uint64_t& r) { return !__builtin_mul_overflow(a, b, &r); }
+bool checked_add(std::uint64_t a, std::uint64_t b, std::uint64_t& r) { return !__builtin_add_overflow(a, b, &r); }
+
+std::string header_at(int line, const char* key) {
+  return "header line " + std::to_string(line) + " (" + key + ")";
+}
+
+}  // namespace
+
 PcdHeader read_pcd_header(const std::string& path) {
+  require_regular_file(path, "PCD file");
   const std::uint64_t fsize = file_size(path);
   if (fsize == 0) fail(path, "the file is empty (expected a PCD header)");
   const std::string buf = read_prefix(path, static_cast<std::size_t>(std::min<std::uint64_t>(fsize, kMaxHeaderBytes)));
@@ -145,6 +165,8 @@ PcdHeader read_pcd_header(const std::string& path) {
   PcdHeader h;
   bool have_fields = false, have_size = false, have_type = false, have_count = false;
   bool have_width = false, have_height = false, have_points = false, have_data = false;
+  int fields_line = 0, size_line = 0, type_line = 0, count_line = 0, width_line = 0, height_line = 0, points_line = 0;
+  std::map<std::string, int> key_line;  // the line of each key seen: a key may appear once
   std::vector<std::string> sizes, types, counts;
   std::size_t pos = 0;
   int lineno = 0;
@@ -157,35 +179,50 @@ PcdHeader read_pcd_header(const std::string& path) {
     std::string line = buf.substr(pos, eol - pos);
     pos = eol + 1;
     ++lineno;
+    if (line.find('\0') != std::string::npos)
+      fail(path, "header line " + std::to_string(lineno) + ": holds a NUL byte (binary data in the header, or not a PCD file)");
     if (!line.empty() && line.back() == '\r') line.pop_back();
     const auto tok = split_ws(line);
     if (tok.empty() || tok[0][0] == '#') continue;
     const std::string& key = tok[0];
     const std::string where = "header line " + std::to_string(lineno) + " (" + key + ")";
+    {
+      const std::string canon = key == "COLUMNS" ? "FIELDS" : key;  // an old synonym
+      const auto seen = key_line.emplace(canon, lineno);
+      if (!seen.second)
+        fail(path, where + ": a second " + canon + " line (the first is header line " + std::to_string(seen.first->second) +
+                       "); each header key appears once");
+    }
     std::vector<std::string> args(tok.begin() + 1, tok.end());
     if (key == "VERSION") {
       continue;
     } else if (key == "FIELDS" || key == "COLUMNS") {
       if (args.empty()) fail(path, where + ": no field names");
+      if (args.size() > kMaxFields)
+        fail(path, where + ": " + std::to_string(args.size()) + " fields; at most " + std::to_string(kMaxFields) + " are supported");
       h.fields.clear();
       for (const auto& a : args) h.fields.push_back({a, 'F', 4, 1});
       have_fields = true;
+      fields_line = lineno;
     } else if (key == "SIZE") {
       sizes = args;
       have_size = true;
+      size_line = lineno;
     } else if (key == "TYPE") {
       types = args;
       have_type = true;
+      type_line = lineno;
     } else if (key == "COUNT") {
       counts = args;
       have_count = true;
+      count_line = lineno;
     } else if (key == "WIDTH" || key == "HEIGHT" || key == "POINTS") {
       std::uint64_t v = 0;
       if (args.size() != 1 || !parse_u64(args[0], v)) fail(path, where + ": expected one non-negative integer");
       if (v > kMaxPoints) fail(path, where + ": " + args[0] + " is not a plausible point count (limit " + std::to_string(kMaxPoints) + ")");
-      if (key == "WIDTH") { h.width = v; have_width = true; }
-      else if (key == "HEIGHT") { h.height = v; have_height = true; }
-      else { h.points = v; have_points = true; }
+      if (key == "WIDTH") { h.width = v; have_width = true; width_line = lineno; }
+      else if (key == "HEIGHT") { h.height = v; have_height = true; height_line = lineno; }
+      else { h.points = v; have_points = true; points_line = lineno; }
     } else if (key == "VIEWPOINT") {
       if (args.size() != 7) fail(path, where + ": expected 7 numbers (tx ty tz qw qx qy qz)");
       for (int i = 0; i < 7; ++i) {
@@ -212,43 +249,86 @@ PcdHeader read_pcd_header(const std::string& path) {
   if (!have_size || !have_type) fail(path, "the header needs SIZE and TYPE lines");
   if (!have_width) fail(path, "the header has no WIDTH line");
   const std::size_t nf = h.fields.size();
-  if (sizes.size() != nf) fail(path, "SIZE has " + std::to_string(sizes.size()) + " entries but FIELDS has " + std::to_string(nf));
-  if (types.size() != nf) fail(path, "TYPE has " + std::to_string(types.size()) + " entries but FIELDS has " + std::to_string(nf));
-  if (have_count && counts.size() != nf) fail(path, "COUNT has " + std::to_string(counts.size()) + " entries but FIELDS has " + std::to_string(nf));
+  if (sizes.size() != nf)
+    fail(path, header_at(size_line, "SIZE") + ": SIZE has " + std::to_string(sizes.size()) + " entries but FIELDS has " + std::to_string(nf));
+  if (types.size() != nf)
+    fail(path, header_at(type_line, "TYPE") + ": TYPE has " + std::to_string(types.size()) + " entries but FIELDS has " + std::to_string(nf));
+  if (have_count && counts.size() != nf)
+    fail(path, header_at(count_line, "COUNT") + ": COUNT has " + std::to_string(counts.size()) + " entries but FIELDS has " + std::to_string(nf));
+  std::uint64_t point_bytes = 0;
   for (std::size_t i = 0; i < nf; ++i) {
     PcdField& f = h.fields[i];
     std::uint64_t sz = 0, cnt = 1;
     if (!parse_u64(sizes[i], sz) || (sz != 1 && sz != 2 && sz != 4 && sz != 8))
-      fail(path, "field '" + f.name + "': SIZE '" + sizes[i] + "' must be 1, 2, 4 or 8");
+      fail(path, header_at(size_line, "SIZE") + ": field '" + f.name + "': SIZE '" + sizes[i] + "' must be 1, 2, 4 or 8");
     if (types[i].size() != 1 || std::string("FUI").find(types[i][0]) == std::string::npos)
-      fail(path, "field '" + f.name + "': TYPE '" + types[i] + "' must be F, U or I");
+      fail(path, header_at(type_line, "TYPE") + ": field '" + f.name + "': TYPE '" + types[i] + "' must be F, U or I");
     if (have_count && (!parse_u64(counts[i], cnt) || cnt == 0 || cnt > 1000000))
-      fail(path, "field '" + f.name + "': COUNT '" + counts[i] + "' must be an integer from 1 to 1000000");
+      fail(path, header_at(count_line, "COUNT") + ": field '" + f.name + "': COUNT '" + counts[i] + "' must be an integer from 1 to 1000000");
     f.type = types[i][0];
     f.size = static_cast<int>(sz);
     f.count = static_cast<int>(cnt);
     if (f.type == 'F' && f.size != 4 && f.size != 8)
-      fail(path, "field '" + f.name + "': a float field must have SIZE 4 or 8, not " + sizes[i]);
-    for (std::size_t j = 0; j < i; ++j)
-      if (f.name != "_" && h.fields[j].name == f.name) fail(path, "field '" + f.name + "' appears twice in FIELDS");
+      fail(path, header_at(size_line, "SIZE") + ": field '" + f.name + "': a float field must have SIZE 4 or 8, not " + sizes[i]);
+    if (!checked_add(point_bytes, f.bytes(), point_bytes))
+      fail(path, header_at(count_line, "COUNT") + ": the bytes of one point overflow 64-bit arithmetic");
+  }
+  {  // A name may appear once ('_' is padding and may repeat): sorted, so O(n log n) in the fields.
+    std::vector<std::size_t> order;
+    order.reserve(nf);
+    for (std::size_t i = 0; i < nf; ++i)
+      if (h.fields[i].name != "_") order.push_back(i);
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+      const int c = h.fields[a].name.compare(h.fields[b].name);
+      return c != 0 ? c < 0 : a < b;
+    });
+    std::size_t dup = nf;  // the first field (in file order) that repeats an earlier name
+    for (std::size_t k = 1; k < order.size(); ++k)
+      if (h.fields[order[k]].name == h.fields[order[k - 1]].name) dup = std::min(dup, order[k]);
+    if (dup < nf) fail(path, header_at(fields_line, "FIELDS") + ": field '" + h.fields[dup].name + "' appears twice in FIELDS");
   }
   if (!have_height) h.height = 1;
-  if (h.height != 0 && h.width > kMaxPoints / h.height) fail(path, "WIDTH x HEIGHT is not a plausible point count");
-  if (!have_points) h.points = h.width * h.height;
-  if (h.points != h.width * h.height)
-    fail(path, "POINTS " + std::to_string(h.points) + " disagrees with WIDTH x HEIGHT = " +
+  const int wh_line = have_height ? height_line : width_line;
+  const char* wh_key = have_height ? "HEIGHT" : "WIDTH";
+  if (h.height == 0 && h.width != 0)
+    fail(path, header_at(height_line, "HEIGHT") + ": HEIGHT 0 with WIDTH " + std::to_string(h.width) +
+                   " (HEIGHT is the number of rows, at least 1; an empty file has WIDTH 0)");
+  std::uint64_t wh = 0;
+  if (!checked_mul(h.width, h.height, wh) || wh > kMaxPoints)
+    fail(path, header_at(wh_line, wh_key) + ": WIDTH x HEIGHT = " + std::to_string(h.width) + " x " + std::to_string(h.height) +
+                   " is not a plausible point count (limit " + std::to_string(kMaxPoints) + ")");
+  if (!have_points) h.points = wh;
+  if (h.points != wh)
+    fail(path, header_at(points_line, "POINTS") + ": POINTS " + std::to_string(h.points) + " disagrees with WIDTH x HEIGHT = " +
                    std::to_string(h.width) + " x " + std::to_string(h.height));
+  // Every size the reader derives from the header is checked here, before anything is allocated.
+  std::uint64_t data_bytes = 0;
+  const int n_line = have_points ? points_line : wh_line;
+  const char* n_key = have_points ? "POINTS" : wh_key;
+  if (!checked_mul(h.points, point_bytes, data_bytes))
+    fail(path, header_at(n_line, n_key) + ": " + std::to_string(h.points) + " points of " + std::to_string(point_bytes) +
+                   " bytes (the sum of SIZE x COUNT over FIELDS) overflow 64-bit arithmetic");
+  // No encoding stores a point in less than 1/kLzfMaxRatio of its bytes: a claim beyond that is
+  // refused here, whatever the encoding (the readers below check each encoding exactly).
+  const std::uint64_t avail = fsize - h.data_offset;
+  if (static_cast<double>(data_bytes) > kLzfMaxRatio * static_cast<double>(avail) + 64.0)
+    fail(path, header_at(n_line, n_key) + ": truncated: the header claims " + std::to_string(h.points) + " points (" +
+                   std::to_string(data_bytes) + " bytes) but the file holds " + std::to_string(avail) +
+                   " bytes of data, too few for any PCD encoding");
   return h;
 }
 
-PcdTable read_pcd(const std::string& path) {
+namespace {
+
+PcdTable read_pcd_unguarded(const std::string& path) {
   PcdTable t;
   t.header = read_pcd_header(path);
   const PcdHeader& h = t.header;
   const std::uint64_t fsize = file_size(path);
   const std::uint64_t avail = fsize - h.data_offset;
   const std::size_t pb = h.point_bytes();
-  const std::uint64_t need = h.points * pb;
+  std::uint64_t need = 0;
+  if (!checked_mul(h.points, pb, need)) fail(path, "the header's point count times point size overflows");  // checked above
   const std::size_t nf = h.fields.size();
   const auto claims = [&] {
     return "the header claims " + std::to_string(h.points) + " points (" + std::to_string(need) + " bytes)";
@@ -282,6 +362,9 @@ PcdTable read_pcd(const std::string& path) {
     if (csize > avail - 8)
       fail(path, "truncated: binary_compressed declares " + std::to_string(csize) + " compressed bytes but " +
                      std::to_string(avail - 8) + " follow");
+    if (csize < avail - 8)
+      fail(path, "binary_compressed: the file holds " + std::to_string(avail - 8 - csize) + " bytes after the " +
+                     std::to_string(csize) + " compressed bytes the data declares (header and data disagree)");
     if (static_cast<double>(usize) > kLzfMaxRatio * static_cast<double>(csize) + 64.0)
       fail(path, "binary_compressed: " + std::to_string(csize) + " compressed bytes cannot hold " + claims());
     std::vector<std::uint8_t> raw(need);
@@ -298,14 +381,19 @@ PcdTable read_pcd(const std::string& path) {
     }
   } else {
     // Each point takes at least two bytes per value ("0 "), so a header claiming more than the
-    // file could hold is rejected before anything is allocated.
-    std::uint64_t values = 0;
-    for (const auto& f : h.fields) values += static_cast<std::uint64_t>(f.count);
-    if (h.points * values * 2 > avail + 1)
+    // file could hold is rejected before anything is read. The columns grow with the points read,
+    // never by the header's claim.
+    std::uint64_t values = 0, min_bytes = 0;
+    for (const auto& f : h.fields) checked_add(values, static_cast<std::uint64_t>(f.count), values);  // <= 1e10
+    if (!checked_mul(h.points, values, min_bytes) || !checked_mul(min_bytes, 2, min_bytes) || min_bytes > avail + 1)
       fail(path, "truncated: " + claims() + " but the " + std::to_string(avail) +
                      " bytes of ascii data cannot hold them");
     const auto data = read_range(path, h.data_offset, avail);
-    for (std::size_t i = 0; i < nf; ++i) t.columns[i].resize(h.points * h.fields[i].bytes());
+    if (const void* nul = std::memchr(data.data(), '\0', data.size())) {
+      const auto at = static_cast<std::size_t>(static_cast<const std::uint8_t*>(nul) - data.data());
+      const auto line = 1 + std::count(data.begin(), data.begin() + static_cast<long>(at), '\n');
+      fail(path, "data line " + std::to_string(line) + ": holds a NUL byte (binary data in an ascii PCD?)");
+    }
     std::size_t pos = 0;
     std::uint64_t p = 0;
     std::uint64_t lineno = 0;
@@ -323,6 +411,7 @@ PcdTable read_pcd(const std::string& path) {
       if (p >= h.points) fail(path, "data line " + std::to_string(lineno) + ": more points than the " + std::to_string(h.points) + " the header declares");
       for (std::size_t i = 0; i < nf; ++i) {
         const PcdField& f = h.fields[i];
+        t.columns[i].resize((p + 1) * f.bytes());
         for (int c = 0; c < f.count; ++c) {
           if (!tok)
             fail(path, "data line " + std::to_string(lineno) + " (point " + std::to_string(p) + "): too few values (field '" + f.name + "' missing)");
@@ -340,6 +429,18 @@ PcdTable read_pcd(const std::string& path) {
       fail(path, "truncated: " + claims() + " but the file holds " + std::to_string(p) + " points");
   }
   return t;
+}
+
+}  // namespace
+
+PcdTable read_pcd(const std::string& path) {
+  try {
+    return read_pcd_unguarded(path);
+  } catch (const std::bad_alloc&) {
+    struct stat st {};
+    const std::string size = ::stat(path.c_str(), &st) == 0 ? " of " + std::to_string(st.st_size) + " bytes" : "";
+    fail(path, "out of memory while reading this PCD file" + size + " (free memory, or split the pass)");
+  }
 }
 
 // ---- writer --------------------------------------------------------------------------------

@@ -1,7 +1,5 @@
 #include "pcdp/io/poses.hpp"
 
-#include <sys/stat.h>
-
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -11,32 +9,30 @@
 #include <vector>
 
 #include "pcdp/errors.hpp"
+#include "pcdp/io/input_file.hpp"
 
 namespace pcdp::io {
 
 namespace {
 const char* const kColumns[] = {"stamp", "x", "y", "z", "roll", "pitch", "yaw"};
 
+// Cells with the blanks around them trimmed; blanks inside a cell stay (and make it no number).
 std::vector<std::string> split_csv(const std::string& line) {
   std::vector<std::string> out;
-  std::string cur;
-  for (char c : line) {
-    if (c == ',') {
-      out.push_back(cur);
-      cur.clear();
-    } else if (c != '\r' && c != ' ' && c != '\t') {
-      cur.push_back(c);
-    }
+  std::size_t a = 0;
+  while (true) {
+    const std::size_t b = line.find(',', a);
+    const std::string cell = line.substr(a, b == std::string::npos ? std::string::npos : b - a);
+    const std::size_t first = cell.find_first_not_of(" \t\r"), last = cell.find_last_not_of(" \t\r");
+    out.push_back(first == std::string::npos ? std::string() : cell.substr(first, last - first + 1));
+    if (b == std::string::npos) break;
+    a = b + 1;
   }
-  out.push_back(cur);
   return out;
 }
-}  // namespace
 
-PoseTrack read_pose_csv(const std::string& path, RpyOrder order) {
-  struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) throw InputError(path + ": cannot open the pose file (" + std::strerror(errno) + ")");
-  if (S_ISDIR(st.st_mode)) throw InputError(path + ": is a directory, not a pose file");
+PoseTrack read_pose_csv_unguarded(const std::string& path, RpyOrder order) {
+  require_regular_file(path, "pose file");
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot open the pose file (" + std::strerror(errno) + ")");
   const auto fail = [&](std::size_t line, const std::string& msg) {
@@ -68,7 +64,7 @@ PoseTrack read_pose_csv(const std::string& path, RpyOrder order) {
       char* end = nullptr;
       errno = 0;
       v[c] = std::strtod(cells[c].c_str(), &end);
-      if (cells[c].empty() || *end != '\0')
+      if (cells[c].empty() || end != cells[c].c_str() + cells[c].size())  // junk after the number, or a NUL
         fail(lineno, "column '" + std::string(kColumns[c]) + "': '" + cells[c] + "' is not a number");
       if (!std::isfinite(v[c]))
         fail(lineno, "column '" + std::string(kColumns[c]) + "': '" + cells[c] + "' is not finite (NaN/inf are not allowed in poses)");
@@ -84,6 +80,15 @@ PoseTrack read_pose_csv(const std::string& path, RpyOrder order) {
   }
   if (samples.empty()) throw InputError(path + ": the pose file has a header but no poses");
   return PoseTrack(std::move(samples));
+}
+}  // namespace
+
+PoseTrack read_pose_csv(const std::string& path, RpyOrder order) {
+  try {
+    return read_pose_csv_unguarded(path, order);
+  } catch (const std::bad_alloc&) {
+    throw InputError(path + ": out of memory while reading the pose file");
+  }
 }
 
 }  // namespace pcdp::io

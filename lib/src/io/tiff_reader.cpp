@@ -12,6 +12,7 @@
 #include <stdexcept>
 
 #include "pcdp/errors.hpp"
+#include "pcdp/io/input_file.hpp"
 #include "tiff_format.hpp"
 #include "xml_escape.hpp"
 
@@ -139,6 +140,7 @@ struct FloatTiffRows::Impl {
   }
 
   void open() {
+    require_regular_file(path, "GeoTIFF");
     in.open(path, std::ios::binary | std::ios::ate);
     if (!in) throw InputError(path + ": cannot open");
     const std::streamoff end = in.tellg();

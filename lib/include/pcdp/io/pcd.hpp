@@ -42,9 +42,13 @@ struct PcdTable {
   std::vector<std::vector<std::uint8_t>> columns;
 };
 
-/// Reads and checks the header only. Throws InputError.
+/// Reads and checks the header only. Throws InputError naming the file, the header line and the
+/// rule: the path must be a regular file; each key appears once; at most 10,000 fields, names unique
+/// ('_' excepted); every size (WIDTH x HEIGHT, SIZE x COUNT summed, points x point bytes) in checked
+/// 64-bit arithmetic and within what the file's data section could hold in any encoding.
 PcdHeader read_pcd_header(const std::string& path);
-/// Reads the whole file. Throws InputError (file, header line or point, rule).
+/// Reads the whole file. Throws InputError (file, header line or point, rule), also when memory runs
+/// out. The ascii reader grows its columns with the points read, never by the header's claim.
 PcdTable read_pcd(const std::string& path);
 
 /// Decodes one numeric value of a field to double.
