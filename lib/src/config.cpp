@@ -91,6 +91,10 @@ Override parse_override(const std::string& text) {
   const auto eq = text.find('=');
   if (eq == std::string::npos || eq == 0)
     throw ConfigError("--set '" + text + "': expected key=value (e.g. sensor.min_amplitude=20)");
+  for (unsigned char c : text)  // YAML would fold a newline into a space: a path would name another file
+    if (c < 0x20 || c == 0x7f)
+      throw ConfigError("--set " + text.substr(0, eq) + ": the value contains a control character (byte " +
+                        std::to_string(static_cast<int>(c)) + "): refused");
   return {text.substr(0, eq), text.substr(eq + 1)};
 }
 

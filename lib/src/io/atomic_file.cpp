@@ -268,6 +268,7 @@ OutputLock::OutputLock(const std::string& target) : path_(beside(fs::path(target
       const std::string pid = pid_text();
       if (::ftruncate(fd_, 0) == 0 && ::pwrite(fd_, pid.data(), pid.size(), 0) < 0) {
       }
+      slot_ = register_temp(path_, 1);
       return;
     }
     ::close(fd_);
@@ -278,6 +279,7 @@ OutputLock::OutputLock(const std::string& target) : path_(beside(fs::path(target
 
 OutputLock::~OutputLock() {
   if (fd_ < 0) return;
+  unregister_temp(slot_);
   ::unlink(path_.c_str());  // still holding it: a process waiting on the old file retries (above)
   ::close(fd_);
 }
@@ -457,10 +459,11 @@ std::string StagedFiles::add(const std::string& key, const std::string& final_pa
   for (const auto& o : items_)
     if (o.fin == it.fin) throw ConfigError(key + ": '" + final_path + "' is already another output of this command");
   std::error_code ec;
+  const std::string what = key == final_path ? final_path : key + ": " + final_path;
   if (!fs::is_directory(t.parent_path(), ec))
-    throw OutputError(key + ": " + final_path + ": the folder " + t.parent_path().string() +
-                      (fs::exists(t.parent_path(), ec) ? " is not a folder" : " does not exist"));
-  if (fs::is_directory(fs::symlink_status(t, ec))) throw OutputError(key + ": " + final_path + " is a folder");
+    throw OutputError(what + ": " + t.parent_path().string() +
+                      (fs::exists(t.parent_path(), ec) ? " is not a folder" : ": no such folder"));
+  if (fs::is_directory(fs::symlink_status(t, ec))) throw OutputError(what + " is a folder");
   it.lock = std::make_unique<OutputLock>(it.fin);
   // Holding the lock: temporaries of this output left by killed processes go.
   const std::string prefix = "." + t.filename().string() + ".pcdp-tmp-";
@@ -471,7 +474,7 @@ std::string StagedFiles::add(const std::string& key, const std::string& final_pa
   it.tmp = beside(t, "tmp-" + pid_text());
   const int fd = ::open(it.tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
   if (fd < 0)
-    throw OutputError(key + ": " + final_path + ": cannot write in " + t.parent_path().string() + " (" + errno_text(errno) + ")");
+    throw OutputError(what + ": cannot write in " + t.parent_path().string() + " (" + errno_text(errno) + ")");
   ::close(fd);
   it.slot = register_temp(it.tmp, 1);
   items_.push_back(std::move(it));

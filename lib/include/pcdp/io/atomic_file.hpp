@@ -42,6 +42,7 @@ class OutputLock {
  private:
   std::string path_;
   int fd_ = -1;
+  int slot_ = -1;  // in the signal cleanup table
 };
 
 /// Refuses (ConfigError naming `key`) an output path that is empty, contains a control character,
