@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -133,9 +134,17 @@ int cmd_evaluate(const std::string& truth, const std::string& run, const std::st
     const sim::SimConfig c = load_scene(scene);
     noise = {c.scanner.range_sigma, c.scanner.encoder_resolution, c.motion.position_sigma, c.motion.rpy_sigma, true};
   }
-  const Evaluation e = evaluate_run(truth, run, noise);
   const std::string out = json.empty() ? (std::filesystem::path(run) / "evaluation.json").string() : json;
-  io::write_file_atomic(out, evaluation_json(e));
+  io::StagedFiles staged;  // checked and locked before the work
+  const std::string tmp = staged.add("evaluate --json", out);
+  const Evaluation e = evaluate_run(truth, run, noise);
+  {
+    const std::string js = evaluation_json(e);
+    std::FILE* f = std::fopen(tmp.c_str(), "wb");
+    const bool ok = f && std::fwrite(js.data(), 1, js.size(), f) == js.size();
+    if (!f || std::fclose(f) != 0 || !ok) throw OutputError(out + ": cannot write (" + std::strerror(errno) + ")");
+  }
+  staged.commit();
   if (!quiet) std::cout << evaluation_table(e) << "written: " << out << "\n";
   return 0;
 }

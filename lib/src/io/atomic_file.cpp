@@ -102,6 +102,21 @@ extern "C" void on_signal(int sig) {
   ::_exit(128 + sig);
 }
 
+/// Holds SIGINT, SIGTERM and SIGHUP back in this thread while a temporary is created and
+/// registered (a signal between the two would leave it behind); they arrive at the end.
+struct BlockSignals {
+  sigset_t old;
+  BlockSignals() {
+    sigset_t set;
+    sigemptyset(&set);
+    sigaddset(&set, SIGINT);
+    sigaddset(&set, SIGTERM);
+    sigaddset(&set, SIGHUP);
+    pthread_sigmask(SIG_BLOCK, &set, &old);
+  }
+  ~BlockSignals() { pthread_sigmask(SIG_SETMASK, &old, nullptr); }
+};
+
 /// Marks a commit's swap: signals wait for its end.
 struct SwapGuard {
   SwapGuard() { g_committing.fetch_add(1); }
@@ -244,6 +259,7 @@ void check_output_path(const std::string& key, const std::string& path) {
 // ---- OutputLock ------------------------------------------------------------------------------
 
 OutputLock::OutputLock(const std::string& target) : path_(beside(fs::path(target), "lock")) {
+  const BlockSignals hold;  // the file is registered for the signal cleanup before a signal can act
   for (int attempt = 0; attempt < 100; ++attempt) {
     fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0666);
     if (fd_ < 0)
@@ -324,6 +340,7 @@ StagedOutputs::StagedOutputs(std::string dir) : dir_(std::move(dir)) {
       fs::remove_all(l, ec);
     }
     staging_ = beside(t, "new-" + pid_text());
+    const BlockSignals hold;
     if (::mkdir(staging_.c_str(), 0777) != 0)
       throw OutputError("output_dir '" + dir_ + "': cannot create the staging folder " + staging_ + " (" +
                         errno_text(errno) + "); the folder that holds the output must be writable");
@@ -472,6 +489,7 @@ std::string StagedFiles::add(const std::string& key, const std::string& final_pa
     if (n.rfind(prefix, 0) == 0) fs::remove(e.path(), ec);
   }
   it.tmp = beside(t, "tmp-" + pid_text());
+  const BlockSignals hold;
   const int fd = ::open(it.tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
   if (fd < 0)
     throw OutputError(what + ": cannot write in " + t.parent_path().string() + " (" + errno_text(errno) + ")");
