@@ -270,7 +270,9 @@ TEST(CommitHardening, SigtermRemovesTheStagedFilesAndExits143) {
     fs::create_directories(s.staging_dir() + "/truth/deeper");
     test::write_text(s.staging_dir() + "/truth/deeper/f", "x");
     io::StagedFiles f;
-    test::write_text(f.add("--png", base + "/m.png"), "png");
+    const std::string tmp = f.add("--png", base + "/m.png");
+    test::write_text(tmp, "png");
+    test::write_text(tmp + ".body", "a writer's own temporary");
     ::raise(SIGTERM);
     _exit(0);
   }

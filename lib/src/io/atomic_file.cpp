@@ -88,7 +88,18 @@ void remove_tree_at(int parent, const char* name, int depth) {
 void remove_registered() {
   for (auto& s : g_slots) {
     const int k = s.kind.load();
-    if (k == 1) ::unlink(s.path);
+    if (k == 1) {  // the file, and the temporaries its writers make beside it (pcd.cpp, geotiff.cpp)
+      ::unlink(s.path);
+      const std::size_t n = std::strlen(s.path);
+      for (const char* suffix : {".body", ".tmp-write.tif", ".tmp-png"}) {
+        char p[kPathMax + 16];
+        const std::size_t m = std::strlen(suffix);
+        if (n + m >= sizeof p) continue;
+        std::memcpy(p, s.path, n);
+        std::memcpy(p + n, suffix, m + 1);
+        ::unlink(p);
+      }
+    }
     if (k == 2) remove_tree_at(AT_FDCWD, s.path, 0);
   }
 }
