@@ -217,6 +217,9 @@ TEST(CommitHardening, AFailedRunLeavesNoFolderItCreated) {
   }  // not committed
   EXPECT_FALSE(fs::exists(base + "/a"));
   EXPECT_TRUE(fs::is_empty(base));
+  // A parent that cannot be created (a name too long): the ones created before it go too.
+  EXPECT_THROW(io::StagedOutputs(base + "/a/" + std::string(300, 'n') + "/out"), OutputError);
+  EXPECT_TRUE(fs::is_empty(base));
 }
 
 TEST(CommitHardening, OutputPathsAreChecked) {

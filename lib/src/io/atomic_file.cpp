@@ -324,12 +324,12 @@ StagedOutputs::StagedOutputs(std::string dir) : dir_(std::move(dir)) {
     missing.push_back(p);
     if (p == p.parent_path()) break;
   }
-  for (auto it = missing.rbegin(); it != missing.rend(); ++it) {
-    if (!fs::create_directory(*it, ec) && ec)
-      throw OutputError("output_dir '" + dir_ + "': cannot create the folder " + it->string() + " (" + ec.message() + ")");
-    created_parents_.push_back(it->string());
-  }
   try {
+    for (auto it = missing.rbegin(); it != missing.rend(); ++it) {
+      if (!fs::create_directory(*it, ec) && ec)
+        throw OutputError("output_dir '" + dir_ + "': cannot create the folder " + it->string() + " (" + ec.message() + ")");
+      created_parents_.push_back(it->string());
+    }
     if (!fs::is_directory(t.parent_path(), ec))
       throw OutputError("output_dir '" + dir_ + "': " + t.parent_path().string() + " is not a folder");
     lock_ = std::make_unique<OutputLock>(target_);
