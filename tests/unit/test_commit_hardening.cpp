@@ -190,6 +190,37 @@ TEST(CommitHardening, TheNewSetKeepsTheUsersFilesAsTheSameFiles) {
   EXPECT_EQ(inode(out + "/notes.txt"), 1u) << "the old set's link is gone";
 }
 
+TEST(CommitHardening, TemporariesOfKilledRunsOfEarlierVersionsAreNotCarriedOver) {
+  const std::string out = test::fresh_dir() + "/out";
+  make_old_set(out);
+  for (const char* n : {".returns.pcd.tmp-123.body", ".report.json.tmp-9", ".elevation.tif.tmp-77.tmp-write.tif",
+                        ".elevation.png.tmp-77.tmp-png"})
+    test::write_text(out + "/" + n, "junk");
+  test::write_text(out + "/.my.tmp-notes", "the user's");  // not a pid: kept
+  run_commit(out);
+  std::vector<std::string> hidden;
+  for (const auto& e : fs::directory_iterator(out))
+    if (e.path().filename().string()[0] == '.') hidden.push_back(e.path().filename().string());
+  EXPECT_EQ(hidden, std::vector<std::string>{".my.tmp-notes"});
+}
+
+std::string g_late_file;
+int write_late(int, const char* what) {
+  if (std::strcmp(what, "exchange") == 0) test::write_text(g_late_file, "written during the commit");
+  return 0;
+}
+
+TEST(CommitHardening, AFileTheUserAddsDuringTheCommitMovesToTheNewSet) {
+  const std::string out = test::fresh_dir() + "/out";
+  make_old_set(out);
+  g_late_file = out + "/late.txt";  // into the old folder, after the carry-over, before the swap
+  io::detail::set_commit_step_hook(write_late);
+  run_commit(out);
+  io::detail::set_commit_step_hook(nullptr);
+  EXPECT_EQ(test::read_text(out + "/late.txt"), "written during the commit");
+  EXPECT_EQ(test::read_text(out + "/returns.pcd"), "new returns");
+}
+
 TEST(CommitHardening, AFolderNamedLikeAProductIsRefusedBeforeTheWork) {
   const std::string out = test::fresh_dir() + "/out";
   make_old_set(out);

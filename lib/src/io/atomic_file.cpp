@@ -239,6 +239,26 @@ int carry_over(Steps& st, const fs::path& src, const fs::path& dst, std::string&
   return 0;
 }
 
+/// Temporaries of earlier versions, which staged products inside the output folder as
+/// `.<product>.tmp-<pid>` (plus `.body`, `.tmp-write.tif`, `.tmp-png`): a killed run left them
+/// there. They are not carried over to a new set.
+bool legacy_temporary(const std::string& n) {
+  if (n.size() < 2 || n[0] != '.') return false;
+  std::string base = n;
+  for (const char* suffix : {".body", ".tmp-write.tif", ".tmp-png"}) {
+    const std::string sfx = suffix;
+    if (base.size() > sfx.size() && base.compare(base.size() - sfx.size(), sfx.size(), sfx) == 0) {
+      base.resize(base.size() - sfx.size());
+      break;
+    }
+  }
+  const auto at = base.rfind(".tmp-");
+  if (at == std::string::npos || at == 0 || at + 5 == base.size()) return false;
+  for (std::size_t i = at + 5; i < base.size(); ++i)
+    if (base[i] < '0' || base[i] > '9') return false;
+  return true;
+}
+
 bool has_control(const std::string& s) {
   for (unsigned char c : s)
     if (c < 0x20 || c == 0x7f) return true;
@@ -425,7 +445,7 @@ void StagedOutputs::commit() {
     if (::stat(target_.c_str(), &s) == 0) ::chmod(staging_.c_str(), s.st_mode & 07777);
     for (const auto& e : fs::directory_iterator(t, ec)) {
       const std::string n = e.path().filename().string();
-      if (products.count(n)) continue;
+      if (products.count(n) || legacy_temporary(n)) continue;
       std::string why;
       if (const int r = carry_over(st, e.path(), stage / n, why)) fail("cannot carry " + why + " over to the new set", r);
     }
@@ -457,7 +477,7 @@ void StagedOutputs::commit() {
       // Entries the user added to the old folder while the run carried it over: moved along.
       for (const auto& e : fs::directory_iterator(old_set, ec)) {
         const std::string n = e.path().filename().string();
-        if (products.count(n) || fs::exists(fs::symlink_status(t / n, ec))) continue;
+        if (products.count(n) || legacy_temporary(n) || fs::exists(fs::symlink_status(t / n, ec))) continue;
         if (st.next("move late entry") == 0) std::rename(e.path().c_str(), (t / n).c_str());
       }
       ec.clear();
