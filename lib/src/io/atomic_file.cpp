@@ -206,16 +206,22 @@ int carry_over(Steps& st, const fs::path& src, const fs::path& dst, std::string&
   std::error_code ec;
   const fs::file_status s = fs::symlink_status(src, ec);
   if (ec) {
-    why = src.string() + ": " + ec.message();
+    why = "cannot carry " + src.string() + " over to the new set";
     return ec.value();
   }
   if (const int e = st.next("carry over")) {
-    why = src.string() + ": " + errno_text(e);
+    why = "cannot carry " + src.string() + " over to the new set";
     return e;
   }
   if (fs::is_symlink(s)) {
     fs::copy_symlink(src, dst, ec);
   } else if (fs::is_directory(s)) {
+    // A filesystem mounted inside the output folder is not copied (nor later deleted with the old set).
+    struct stat me {}, up {};
+    if (::stat(src.c_str(), &me) == 0 && ::stat(src.parent_path().c_str(), &up) == 0 && me.st_dev != up.st_dev) {
+      why = src.string() + " is a mount point: it cannot be carried over to the new set (unmount it or write elsewhere)";
+      return EXDEV;
+    }
     fs::create_directory(dst, src, ec);
     if (!ec)
       for (const auto& e : fs::directory_iterator(src, ec)) {
@@ -229,11 +235,11 @@ int carry_over(Steps& st, const fs::path& src, const fs::path& dst, std::string&
   } else if (s.type() == fs::file_type::fifo) {
     if (::mkfifo(dst.c_str(), static_cast<mode_t>(s.permissions())) != 0) ec.assign(errno, std::generic_category());
   } else {
-    why = src.string() + ": a socket or device in the output folder cannot be carried over to the new set";
+    why = src.string() + " is a socket or device: it cannot be carried over to the new set";
     return EINVAL;
   }
   if (ec) {
-    why = src.string() + ": " + ec.message();
+    why = "cannot carry " + src.string() + " over to the new set";
     return ec.value() ? ec.value() : EIO;
   }
   return 0;
@@ -447,7 +453,7 @@ void StagedOutputs::commit() {
       const std::string n = e.path().filename().string();
       if (products.count(n) || legacy_temporary(n)) continue;
       std::string why;
-      if (const int r = carry_over(st, e.path(), stage / n, why)) fail("cannot carry " + why + " over to the new set", r);
+      if (const int r = carry_over(st, e.path(), stage / n, why)) fail(why, r);
     }
     if (ec) fail("cannot list the folder", ec.value());
   }
