@@ -102,6 +102,10 @@ Override parse_override(const std::string& text) {
   const auto eq = text.find('=');
   if (eq == std::string::npos || eq == 0)
     throw ConfigError("--set '" + text + "': expected key=value (e.g. sensor.min_amplitude=20)");
+  for (unsigned char c : text)  // YAML would fold a newline into a space: a path would name another file
+    if (c < 0x20 || c == 0x7f)
+      throw ConfigError("--set " + text.substr(0, eq) + ": the value contains a control character (byte " +
+                        std::to_string(static_cast<int>(c)) + "): refused");
   return {text.substr(0, eq), text.substr(eq + 1)};
 }
 
@@ -140,6 +144,10 @@ class Context {
   /// Paths in the file resolve against the file's folder; paths given by --set against the
   /// working directory, as a user typing them expects.
   std::string resolve(const std::string& key, const std::string& p) const {
+    for (unsigned char c : p)
+      if (c < 0x20 || c == 0x7f)
+        throw ConfigError(source_ + ": key '" + key + "': the path contains a control character (byte " +
+                          std::to_string(static_cast<int>(c)) + "): refused");
     if (p.empty() || fs::path(p).is_absolute() || overridden(key)) return p;
     return (fs::path(base_) / p).lexically_normal().string();
   }
@@ -565,6 +573,8 @@ PipelineConfig build(YAML::Node root, Context& ctx, const LoadOptions& opts) {
 
   // output
   if (!opts.output_dir.empty()) {
+    for (unsigned char c : opts.output_dir)
+      if (c < 0x20 || c == 0x7f) throw ConfigError("--output-dir: the path contains a control character: refused");
     cfg.output_dir = opts.output_dir;
   } else {
     const YAML::Node od = root["output_dir"];

@@ -1,10 +1,13 @@
 #include "pcdp/pipeline.hpp"
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <ctime>
 #include <limits>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <nlohmann/json.hpp>
@@ -70,6 +73,17 @@ Pipeline Pipeline::prepare(PipelineConfig config) {
   if (!cfg.poses.empty())
     p.context_.poses = std::make_shared<const PoseTrack>(io::read_pose_csv(cfg.poses, cfg.rpy_order));
   for (const auto& sc : cfg.stages) p.stages_.push_back(find_stage(sc.type)->create(sc, p.context_));
+  // Every product has one writer: a stage list that writes a file twice is refused before the run.
+  std::map<std::string, std::string> writer = {{"returns.pcd", "the pipeline"}, {"cloud.pcd", "the pipeline"},
+                                               {"report.json", "the pipeline"}};
+  for (std::size_t s = 0; s < cfg.stages.size(); ++s)
+    for (const auto& f : p.stages_[s]->products()) {
+      const std::string me = "stage '" + cfg.stages[s].name + "' (" + cfg.stages[s].type + ")";
+      const auto [it, fresh] = writer.emplace(f, me);
+      if (!fresh)
+        throw ConfigError(cfg.stages[s].where + ": " + me + " writes " + f + ", which " + it->second +
+                          " writes too: a run writes each output once (keep one of the stages)");
+    }
   return p;
 }
 
@@ -208,6 +222,12 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   // each pass file is a regular readable file whose header parses with the required fields.
   for (const auto& f : cfg.scans) check_pass_header(f);
   io::StagedOutputs out(cfg.output_dir);
+  {
+    std::vector<std::string> products = {"returns.pcd", "cloud.pcd", "report.json"};
+    for (const auto& st : stages_)
+      for (const auto& f : st->products()) products.push_back(f);
+    out.check_replaceable(products);  // before the work, not at the end
+  }
   io::ReturnsWriter returns(out.staged_path("returns.pcd"));
   io::CloudWriter cloud(out.staged_path("cloud.pcd"));
   const std::string report_tmp = out.staged_path("report.json");
@@ -417,7 +437,7 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
     std::FILE* f = std::fopen(report_tmp.c_str(), "wb");
     const std::string js = report_json(cfg, sum);
     if (!f || std::fwrite(js.data(), 1, js.size(), f) != js.size() || std::fclose(f) != 0)
-      throw std::runtime_error(report_tmp + ": cannot write the report");
+      throw OutputError(out.final_path("report.json") + ": cannot write the report (" + std::strerror(errno) + ")");
   }
   out.commit();
   return sum;

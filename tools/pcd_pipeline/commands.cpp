@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -99,15 +100,17 @@ int cmd_stages() {
 
 int cmd_simulate(const std::string& scene, const std::string& output_dir, bool quiet) {
   const sim::SimConfig cfg = load_scene(scene);
+  io::StagedOutputs staged(output_dir);  // locked and checked before the work; committed as a set
   const sim::SimResult r = sim::simulate(cfg);
-  const auto files = sim::write_run(r, cfg, output_dir);
-  sim::write_truth(r, cfg, output_dir);
+  const auto files = sim::write_run(r, cfg, staged.staging_dir());
+  sim::write_truth(r, cfg, staged.staging_dir());
   {  // the scene travels with its truth, so `evaluate` knows the noise it should expect
     std::ifstream in(scene, std::ios::binary);
     std::ostringstream text;
     text << in.rdbuf();
-    io::write_file_atomic((std::filesystem::path(output_dir) / "truth" / "scene.yaml").string(), text.str());
+    io::write_file_atomic((std::filesystem::path(staged.staging_dir()) / "truth" / "scene.yaml").string(), text.str());
   }
+  staged.commit();
   if (!quiet) {
     std::size_t n = 0;
     LabelHistogram truth{};
@@ -131,9 +134,17 @@ int cmd_evaluate(const std::string& truth, const std::string& run, const std::st
     const sim::SimConfig c = load_scene(scene);
     noise = {c.scanner.range_sigma, c.scanner.encoder_resolution, c.motion.position_sigma, c.motion.rpy_sigma, true};
   }
-  const Evaluation e = evaluate_run(truth, run, noise);
   const std::string out = json.empty() ? (std::filesystem::path(run) / "evaluation.json").string() : json;
-  io::write_file_atomic(out, evaluation_json(e));
+  io::StagedFiles staged;  // checked and locked before the work
+  const std::string tmp = staged.add("evaluate --json", out);
+  const Evaluation e = evaluate_run(truth, run, noise);
+  {
+    const std::string js = evaluation_json(e);
+    std::FILE* f = std::fopen(tmp.c_str(), "wb");
+    const bool ok = f && std::fwrite(js.data(), 1, js.size(), f) == js.size();
+    if (!f || std::fclose(f) != 0 || !ok) throw OutputError(out + ": cannot write (" + std::strerror(errno) + ")");
+  }
+  staged.commit();
   if (!quiet) std::cout << evaluation_table(e) << "written: " << out << "\n";
   return 0;
 }
@@ -239,6 +250,9 @@ int cmd_amplitude_model(const EdgeParams& e, const AmplitudeModelArgs& a) {
 int cmd_clean_cloud(const CleanCloudArgs& a) {
   if (a.output.empty()) throw ConfigError("clean-cloud: --output is required");
   if (!(a.resolution > 0.0 && a.resolution < 0.5)) throw ConfigError("clean-cloud: --resolution must be in (0, 0.5) rad");
+  io::StagedFiles staged;  // checked and locked before the work
+  const std::string kept_tmp = staged.add("clean-cloud --output", a.output);
+  const std::string removed_tmp = a.removed.empty() ? std::string() : staged.add("clean-cloud --removed", a.removed);
   io::PcdTable t = io::read_pcd(a.input);
   const int ix = t.header.field_index("x"), iy = t.header.field_index("y"), iz = t.header.field_index("z");
   if (ix < 0 || iy < 0 || iz < 0) throw InputError(a.input + ": needs fields x, y, z");
@@ -264,9 +278,8 @@ int cmd_clean_cloud(const CleanCloudArgs& a) {
     for (std::size_t i = 0; i < n; ++i) amp[i] = static_cast<float>(col(k, i));
   }
   const std::vector<char> mixed = mixed_pixels_in_cloud(pts, vp, amp, a.resolution, MixedPixelParams{}, 0.0053);
-  // Write kept (and removed) points with every field of the input, via temporary names.
-  const auto write = [&](const std::string& path, bool want_mixed) {
-    const std::string tmp = path + ".tmp-clean";
+  // Write kept (and removed) points with every field of the input, committed as a set.
+  const auto write = [&](const std::string& tmp, bool want_mixed) {
     std::uint64_t count = 0;
     {
       io::PcdWriter w(tmp, t.header.fields);
@@ -284,11 +297,11 @@ int cmd_clean_cloud(const CleanCloudArgs& a) {
       }
       w.close();
     }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) throw std::runtime_error(path + ": cannot rename into place");
     return count;
   };
-  const std::uint64_t kept = write(a.output, false);
-  const std::uint64_t removed = a.removed.empty() ? n - kept : write(a.removed, true);
+  const std::uint64_t kept = write(kept_tmp, false);
+  const std::uint64_t removed = a.removed.empty() ? n - kept : write(removed_tmp, true);
+  staged.commit();
   if (!a.quiet)
     std::printf("%s: %zu points, %llu mixed pixels removed (viewpoint %g %g %g, resolution %g rad) -> %s\n", a.input.c_str(), n,
                 static_cast<unsigned long long>(removed), vp.x(), vp.y(), vp.z(), a.resolution, a.output.c_str());
@@ -420,13 +433,17 @@ int cmd_error_budget(const RunArgs& a, const std::string& svg, const std::string
 
 int cmd_merge(const std::vector<std::string>& inputs, const std::string& output, const std::string& png, unsigned threads) {
   if (inputs.size() < 2) throw ConfigError("merge: give two or more elevation grids to merge");
+  io::StagedFiles staged;  // checked and locked before the work; the .tif and the PNG committed as a set
+  const std::string tif_tmp = staged.add("merge --output", output);
+  const std::string png_tmp = png.empty() ? std::string() : staged.add("merge --png", png);
   // The first grid sets the grid; the others are read into it a strip of rows at a time.
   ElevationGrid grid = io::read_elevation_geotiff(inputs[0]);
   for (std::size_t k = 1; k < inputs.size(); ++k) io::merge_elevation_geotiff(grid, inputs[k], inputs[0]);
   // The GeoTIFF's bands are compressed on `threads` threads; the file is the same whatever the count.
   const auto share = WorkShare::threads(threads_or_cores(threads));
-  io::write_elevation_geotiff(grid, output, 1, *share);
-  if (!png.empty()) io::write_elevation_png(grid, png);
+  io::write_elevation_geotiff(grid, tif_tmp, 1, *share);
+  if (!png.empty()) io::write_elevation_png(grid, png_tmp);
+  staged.commit();
   std::printf("merged %zu grids -> %s (%zu cells)\n", inputs.size(), output.c_str(), grid.size());
   return 0;
 }
@@ -453,7 +470,6 @@ int cmd_docs() {
 namespace {
 /// Writes imported passes as OUT/pass_NNN.pcd (each atomically); returns the number of returns.
 std::size_t write_passes(const std::vector<Pass>& passes, const std::string& out_dir) {
-  std::filesystem::create_directories(out_dir);
   std::size_t n = 0;
   for (std::size_t k = 0; k < passes.size(); ++k) {
     char name[32];
@@ -486,10 +502,12 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
     opt.max_residual = max_residual;
     opt.auto_nod_origin = nod_origin == "auto";
     if (!nod_origin.empty() && !opt.auto_nod_origin) opt.nod_origin = xyz("--nod-origin", nod_origin);
+    io::StagedOutputs staged(out_dir);  // locked and checked before the work; committed as a set
     const io::ImportedScans r = format == "octomap" ? io::import_octomap(inputs, opt)
                                                     : io::import_cloud(inputs, have_vp ? &vp : nullptr, opt);
-    const std::size_t n = write_passes(r.passes, out_dir);
-    sim::write_pose_csv(r.poses, RpyOrder::kXyz, (std::filesystem::path(out_dir) / "poses.csv").string());
+    const std::size_t n = write_passes(r.passes, staged.staging_dir());
+    sim::write_pose_csv(r.poses, RpyOrder::kXyz, (std::filesystem::path(staged.staging_dir()) / "poses.csv").string());
+    staged.commit();
     std::printf("imported %zu scan(s), %zu returns -> %s (pass_*.pcd, poses.csv; rpy_order xyz, mount identity, "
                 "skew_correction: false)\n",
                 r.passes.size(), n, out_dir.c_str());
@@ -511,8 +529,10 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
     if (inputs.size() != 1)
       throw ConfigError("import rplidar: expected one folder (with scans.csv, beams.csv, servo.csv), got " +
                         std::to_string(inputs.size()) + " inputs");
+    io::StagedOutputs staged(out_dir);
     const io::ImportedRplidar r = io::import_rplidar(inputs[0]);
-    write_passes(r.passes, out_dir);
+    write_passes(r.passes, staged.staging_dir());
+    staged.commit();
     std::printf("imported %zu LaserScan(s) (%zu dropped: empty or outside the servo stream), %zu returns in %zu pass(es) "
                 "-> %s (pass_*.pcd; no pose file: T_M_V = identity)\n",
                 r.scans, r.dropped_scans, r.beams, r.passes.size(), out_dir.c_str());
@@ -523,9 +543,11 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
                       "; formats: 3dtk, rplidar, octomap, cloud");
   if (poses != "odometry" && poses != "frames")
     throw ConfigError("import 3dtk: --poses must be odometry or frames, not '" + poses + "'");
+  io::StagedOutputs staged(out_dir);
   const io::Imported3dtk r = io::import_3dtk(inputs, poses == "frames");
-  const std::size_t n = write_passes(r.passes, out_dir);
-  sim::write_pose_csv(r.poses, RpyOrder::kXyz, (std::filesystem::path(out_dir) / "poses.csv").string());
+  const std::size_t n = write_passes(r.passes, staged.staging_dir());
+  sim::write_pose_csv(r.poses, RpyOrder::kXyz, (std::filesystem::path(staged.staging_dir()) / "poses.csv").string());
+  staged.commit();
   std::printf("imported %zu 3DTK scan(s), %zu returns, %s poses -> %s (pass_*.pcd, poses.csv; rpy_order xyz)\n",
               r.passes.size(), n, poses.c_str(), out_dir.c_str());
   return 0;

@@ -1,11 +1,12 @@
 // pcd_pipeline: the command-line edge. Parses arguments, calls a command, maps errors to exit codes
-// (0 ok, 1 internal error, 2 invalid configuration, 3 input data error).
+// (0 ok, 1 internal error, 2 invalid configuration, 3 input data error, 4 an output cannot be written).
 #include <CLI/CLI.hpp>
 #include <iostream>
 
 #include "bench.hpp"
 #include "commands.hpp"
 #include "pcdp/errors.hpp"
+#include "pcdp/io/atomic_file.hpp"
 #include "pcdp/nod_plan.hpp"
 #include "pcdp/occlusion_model.hpp"
 
@@ -14,12 +15,21 @@ int main(int argc, char** argv) {
   CLI::App app{"pcd_pipeline: nodding-laser scans to clean, registered point clouds and terrain maps"};
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("pcd_pipeline ") + PCDP_VERSION_STRING);
+  // Output paths: not empty, no control character (a newline would name another file).
+  const CLI::Validator output_path(
+      [](std::string& p) {
+        if (p.empty()) return std::string("the output path is empty");
+        for (unsigned char c : p)
+          if (c < 0x20 || c == 0x7f) return std::string("the output path contains a control character");
+        return std::string();
+      },
+      "PATH");
 
   cli::RunArgs run_args;
   auto add_run_options = [&](CLI::App* c) {
     c->add_option("pipeline", run_args.pipeline, "pipeline YAML file")->required();
     c->add_option("--set", run_args.sets, "override a key: --set sensor.min_amplitude=20 (repeatable)");
-    c->add_option("--output-dir", run_args.output_dir, "output folder (wins over output_dir in the file)");
+    c->add_option("--output-dir", run_args.output_dir, "output folder (wins over output_dir in the file)")->check(output_path);
     c->add_flag("-q,--quiet", run_args.quiet, "print nothing but errors");
   };
   CLI::App* run = app.add_subcommand("run", "run a pipeline: read passes, run the stages, write the outputs");
@@ -38,7 +48,7 @@ int main(int argc, char** argv) {
   bool sim_quiet = false;
   CLI::App* simulate = app.add_subcommand("simulate", "simulate a nodding scanner in a scene: passes, poses and ground truth");
   simulate->add_option("scene", scene, "scene YAML file")->required();
-  simulate->add_option("--output-dir", sim_out, "output folder")->required();
+  simulate->add_option("--output-dir", sim_out, "output folder")->required()->check(output_path);
   simulate->add_flag("-q,--quiet", sim_quiet, "print nothing but errors");
 
   std::string ev_truth, ev_run, ev_json;
@@ -46,7 +56,7 @@ int main(int argc, char** argv) {
   CLI::App* evaluate = app.add_subcommand("evaluate", "score a run against simulator ground truth");
   evaluate->add_option("--truth", ev_truth, "folder written by `simulate` (holds truth/)")->required();
   evaluate->add_option("--run", ev_run, "output folder of a run (holds returns.pcd)")->required();
-  evaluate->add_option("--json", ev_json, "where to write the scores (default: RUN/evaluation.json)");
+  evaluate->add_option("--json", ev_json, "where to write the scores (default: RUN/evaluation.json)")->check(output_path);
   evaluate->add_flag("-q,--quiet", ev_quiet, "print nothing but errors");
 
   NodPlanParams np;
@@ -60,7 +70,7 @@ int main(int argc, char** argv) {
   plan->add_option("--encoder-resolution", np.encoder_resolution, "rad")->capture_default_str();
   plan->add_option("--max-rate", np.max_rate, "maximum nod rate, rad/s")->capture_default_str();
   plan->add_option("--rate", np.rate, "constant-rate profile: nod rate, rad/s (for its sample-distance column)")->capture_default_str();
-  plan->add_option("--csv", np_csv, "also write the table as CSV");
+  plan->add_option("--csv", np_csv, "also write the table as CSV")->check(output_path);
 
   EdgeParams edge;  // defaults: Liu et al. Fig. 13
   cli::AmplitudeModelArgs am;
@@ -74,15 +84,15 @@ int main(int argc, char** argv) {
   amp->add_option("--theta", edge.theta, "transceiver separation angle, rad")->capture_default_str();
   amp->add_option("--min-amplitude", am.min_amplitude, "minimum detectable amplitude")->capture_default_str();
   amp->add_option("--points", am.points, "samples of the profile")->capture_default_str();
-  amp->add_option("--profile-csv", am.profile_csv, "write the profile (x, amplitude, coaxial amplitude) as CSV");
-  amp->add_option("--theta-csv", am.theta_csv, "write the minimum against theta as CSV");
-  amp->add_option("--svg", am.svg_prefix, "draw PREFIX_profile.svg and PREFIX_theta.svg");
+  amp->add_option("--profile-csv", am.profile_csv, "write the profile (x, amplitude, coaxial amplitude) as CSV")->check(output_path);
+  amp->add_option("--theta-csv", am.theta_csv, "write the minimum against theta as CSV")->check(output_path);
+  amp->add_option("--svg", am.svg_prefix, "draw PREFIX_profile.svg and PREFIX_theta.svg")->check(output_path);
 
   cli::CleanCloudArgs cc;
   CLI::App* clean = app.add_subcommand("clean-cloud", "remove mixed pixels from a Cartesian cloud seen from one viewpoint");
   clean->add_option("input", cc.input, "PCD with x y z (intensity or amplitude used if present)")->required();
-  clean->add_option("-o,--output", cc.output, "cleaned cloud (all input fields)")->required();
-  clean->add_option("--removed", cc.removed, "also write the removed points here");
+  clean->add_option("-o,--output", cc.output, "cleaned cloud (all input fields)")->required()->check(output_path);
+  clean->add_option("--removed", cc.removed, "also write the removed points here")->check(output_path);
   clean->add_option("--viewpoint", cc.viewpoint, "sensor position x,y,z in the cloud's frame (default: the PCD VIEWPOINT)");
   clean->add_option("--resolution", cc.resolution, "angular step of the scan, rad")->capture_default_str();
   clean->add_flag("-q,--quiet", cc.quiet, "print nothing but errors");
@@ -101,15 +111,15 @@ int main(int argc, char** argv) {
   CLI::App* ebud = app.add_subcommand("error-budget", "positional error against range and orientation error, for a sensor block");
   ebud->add_option("pipeline", eb_args.pipeline, "pipeline YAML (sensor block, mount, pose_sigma)")->required();
   ebud->add_option("--set", eb_args.sets, "override a key (as for run)");
-  ebud->add_option("--svg", eb_svg, "draw the picture (Broten & Collier Fig. 22 analogue)");
-  ebud->add_option("--csv", eb_csv, "write the table as CSV");
+  ebud->add_option("--svg", eb_svg, "draw the picture (Broten & Collier Fig. 22 analogue)")->check(output_path);
+  ebud->add_option("--csv", eb_csv, "write the table as CSV")->check(output_path);
 
   std::vector<std::string> mg_in;
   std::string mg_out, mg_png;
   CLI::App* mrg = app.add_subcommand("merge", "merge elevation grids fused from disjoint sets of passes (exact, any order)");
   mrg->add_option("grids", mg_in, "elevation.tif files written by fuse_elevation or merge")->required();
-  mrg->add_option("-o,--output", mg_out, "merged GeoTIFF")->required();
-  mrg->add_option("--png", mg_png, "also draw the merged picture");
+  mrg->add_option("-o,--output", mg_out, "merged GeoTIFF")->required()->check(output_path);
+  mrg->add_option("--png", mg_png, "also draw the merged picture")->check(output_path);
   unsigned mg_threads = 0;
   mrg->add_option("-j,--threads", mg_threads, "threads compressing the GeoTIFF (0: one per core); the file is the same whatever the count")
       ->check(CLI::Range(0, 256));
@@ -124,7 +134,7 @@ int main(int argc, char** argv) {
                   "octomap: scan.dat (ASCII, NODE lines) or .graph (ScanGraph); cloud: Cartesian .pcd or .ply with a viewpoint")
       ->required();
   imp->add_option("inputs", imp_in, "input files")->required();
-  imp->add_option("--output-dir", imp_out, "folder for pass_*.pcd and poses.csv")->required();
+  imp->add_option("--output-dir", imp_out, "folder for pass_*.pcd and poses.csv")->required()->check(output_path);
   imp->add_option("--poses", imp_poses, "3dtk: odometry (.pose) or frames (slam6D's registered .frames)")->capture_default_str();
   imp->add_option("--viewpoint", imp_viewpoint, "cloud: sensor position x,y,z in the cloud frame (default: the PCD VIEWPOINT; PLY: 0,0,0)");
   imp->add_option("--nod-origin", imp_nod_origin,
@@ -149,6 +159,8 @@ int main(int argc, char** argv) {
     return rc == 0 ? 0 : static_cast<int>(ExitCode::kConfig);
   }
 
+  // SIGINT/SIGTERM: the temporaries of a commit in progress are removed, exit 128 + signal.
+  io::install_signal_cleanup();
   try {
     if (*run) return cli::cmd_run(run_args);
     if (*validate) return cli::cmd_validate(run_args);
@@ -172,6 +184,9 @@ int main(int argc, char** argv) {
   } catch (const InputError& e) {
     std::cerr << "error: " << e.what() << "\n";
     return static_cast<int>(ExitCode::kInput);
+  } catch (const OutputError& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return static_cast<int>(ExitCode::kOutput);
   } catch (const std::exception& e) {
     std::cerr << "internal error: " << e.what() << "\n";
     return static_cast<int>(ExitCode::kInternal);

@@ -1,6 +1,6 @@
 // Error types thrown at the boundaries of the library. Each maps to one CLI exit code:
 //   ConfigError -> 2 (invalid configuration), InputError -> 3 (input data error),
-//   anything else -> 1 (internal error).
+//   OutputError -> 4 (an output cannot be written), anything else -> 1 (internal error).
 #pragma once
 
 #include <stdexcept>
@@ -21,7 +21,14 @@ class InputError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-enum class ExitCode : int { kOk = 0, kInternal = 1, kConfig = 2, kInput = 3 };
+/// An output cannot be written: the folder or file is not writable, the path runs through a file,
+/// the disk is full, another run holds the output folder, the commit failed.
+class OutputError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+enum class ExitCode : int { kOk = 0, kInternal = 1, kConfig = 2, kInput = 3, kOutput = 4 };
 
 /// Levenshtein distance, for "did you mean" suggestions.
 std::size_t edit_distance(const std::string& a, const std::string& b);

@@ -59,7 +59,8 @@ class Pipeline {
 
   const PipelineConfig& config() const { return *config_; }
   /// Streams every pass through the stages, writes returns.pcd, cloud.pcd, the stages' products
-  /// and report.json into output_dir, then renames them into place. With threads > 1, passes are
+  /// and report.json into a staging folder, then swaps it with output_dir (io::StagedOutputs:
+  /// the complete old or new set, whatever fails or is killed). With threads > 1, passes are
   /// processed on that many worker threads (at most threads + 1 passes in memory) and applied in
   /// pass order: the outputs are identical whatever the thread count (Stage::concurrent/split).
   /// Progress events come from the calling thread.

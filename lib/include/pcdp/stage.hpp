@@ -76,6 +76,9 @@ class Stage {
   virtual void process(Pass& pass, StageReport& report) = 0;
   /// After the last pass: write products, add run-level metrics.
   virtual void finish(OutputSink& /*sink*/, StageReport& /*report*/) {}
+  /// The file names finish() writes into the output folder (checked before the run: two stages
+  /// must not write the same product).
+  virtual std::vector<std::string> products() const { return {}; }
   /// Stages whose products can be written independently split finish() into parts; with
   /// threads, the pipeline runs the parts of every stage at once, each with its own report,
   /// merged in order. Parts of one stage may run concurrently: they must not change shared

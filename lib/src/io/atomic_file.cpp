@@ -1,12 +1,21 @@
 #include "pcdp/io/atomic_file.hpp"
 
+#include <dirent.h>
+#include <fcntl.h>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <sys/syscall.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
+#include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
+#include <iostream>
+#include <set>
 
 #include "pcdp/errors.hpp"
 
@@ -14,26 +23,397 @@ namespace fs = std::filesystem;
 
 namespace pcdp::io {
 
-StagedOutputs::StagedOutputs(std::string dir) : dir_(std::move(dir)) {
+namespace {
+
+std::string errno_text(int e) { return std::strerror(e); }
+
+// ---- signal cleanup: a fixed table the handler reads without locks or allocation ------------
+
+constexpr int kSlots = 16;
+constexpr std::size_t kPathMax = 4096;
+struct Slot {
+  std::atomic<int> kind{0};  // 0 free, 1 file, 2 folder tree, -1 being filled
+  char path[kPathMax];
+};
+Slot g_slots[kSlots];
+std::atomic<int> g_committing{0};      // swaps in progress: a signal waits for their end
+std::atomic<int> g_pending_signal{0};
+
+int register_temp(const std::string& path, int kind) {
+  if (path.size() >= kPathMax) return -1;
+  for (int i = 0; i < kSlots; ++i) {
+    int expected = 0;
+    if (g_slots[i].kind.compare_exchange_strong(expected, -1)) {
+      std::memcpy(g_slots[i].path, path.c_str(), path.size() + 1);
+      g_slots[i].kind.store(kind);
+      return i;
+    }
+  }
+  return -1;  // full: the next run into the folder removes the leftovers
+}
+void unregister_temp(int slot) {
+  if (slot >= 0) g_slots[slot].kind.store(0);
+}
+
+// Removes a folder tree with system calls only (async-signal-safe): getdents64, unlinkat.
+void remove_tree_at(int parent, const char* name, int depth) {
+  if (::unlinkat(parent, name, 0) == 0 || (errno != EISDIR && errno != EPERM)) return;
+  if (depth > 16) return;
+  const int fd = ::openat(parent, name, O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+  if (fd < 0) return;
+  alignas(8) char buf[2048];
+  for (int round = 0; round < 64; ++round) {
+    bool removed = false;
+    ::lseek(fd, 0, SEEK_SET);
+    for (;;) {
+      const long n = ::syscall(SYS_getdents64, fd, buf, sizeof buf);
+      if (n <= 0) break;
+      for (long off = 0; off < n;) {
+        // struct linux_dirent64: u64 ino, s64 off, u16 reclen, u8 type, char name[]
+        unsigned short reclen;
+        std::memcpy(&reclen, buf + off + 16, sizeof reclen);
+        const char* entry = buf + off + 19;
+        off += reclen;
+        if (entry[0] == '.' && (entry[1] == 0 || (entry[1] == '.' && entry[2] == 0))) continue;
+        remove_tree_at(fd, entry, depth + 1);
+        removed = true;
+      }
+    }
+    if (!removed) break;
+  }
+  ::close(fd);
+  ::unlinkat(parent, name, AT_REMOVEDIR);
+}
+
+void remove_registered() {
+  for (auto& s : g_slots) {
+    const int k = s.kind.load();
+    if (k == 1) {  // the file, and the temporaries its writers make beside it (pcd.cpp, geotiff.cpp)
+      ::unlink(s.path);
+      const std::size_t n = std::strlen(s.path);
+      for (const char* suffix : {".body", ".tmp-write.tif", ".tmp-png"}) {
+        char p[kPathMax + 16];
+        const std::size_t m = std::strlen(suffix);
+        if (n + m >= sizeof p) continue;
+        std::memcpy(p, s.path, n);
+        std::memcpy(p + n, suffix, m + 1);
+        ::unlink(p);
+      }
+    }
+    if (k == 2) remove_tree_at(AT_FDCWD, s.path, 0);
+  }
+}
+
+extern "C" void on_signal(int sig) {
+  if (g_committing.load() > 0) {  // a swap is under way: it finishes, then the signal is acted on
+    g_pending_signal.store(sig);
+    return;
+  }
+  remove_registered();
+  ::_exit(128 + sig);
+}
+
+/// Holds SIGINT, SIGTERM and SIGHUP back in this thread while a temporary is created and
+/// registered (a signal between the two would leave it behind); they arrive at the end.
+struct BlockSignals {
+  sigset_t old;
+  BlockSignals() {
+    sigset_t set;
+    sigemptyset(&set);
+    sigaddset(&set, SIGINT);
+    sigaddset(&set, SIGTERM);
+    sigaddset(&set, SIGHUP);
+    pthread_sigmask(SIG_BLOCK, &set, &old);
+  }
+  ~BlockSignals() { pthread_sigmask(SIG_SETMASK, &old, nullptr); }
+};
+
+/// Marks a commit's swap: signals wait for its end.
+struct SwapGuard {
+  SwapGuard() { g_committing.fetch_add(1); }
+  ~SwapGuard() {
+    if (g_committing.fetch_sub(1) == 1) {
+      const int sig = g_pending_signal.exchange(0);
+      if (sig) on_signal(sig);
+    }
+  }
+};
+
+// ---- the test hook -----------------------------------------------------------------------------
+
+detail::CommitStepHook g_hook = nullptr;
+
+int env_hook(int step, const char*) {
+  static const char* spec = std::getenv("PCDP_TEST_COMMIT_FAULT");
+  if (!spec) return 0;
+  const std::string s = spec;
+  const auto colon = s.find(':');
+  if (colon == std::string::npos || std::atoi(s.c_str() + colon + 1) != step) return 0;
+  if (s.compare(0, colon, "kill") == 0) ::kill(::getpid(), SIGKILL);
+  return s.compare(0, colon, "fail") == 0 ? EIO : 0;
+}
+
+/// One filesystem step of a commit: the hook may fail it (returns errno) or kill the process.
+class Steps {
+ public:
+  int next(const char* what) {
+    ++n_;
+    return g_hook ? g_hook(n_, what) : env_hook(n_, what);
+  }
+
+ private:
+  int n_ = 0;
+};
+
+int do_rename(Steps& st, const char* what, const std::string& a, const std::string& b) {
+  if (const int e = st.next(what)) return e;
+  return std::rename(a.c_str(), b.c_str()) == 0 ? 0 : errno;
+}
+
+#ifndef RENAME_EXCHANGE
+#define RENAME_EXCHANGE (1 << 1)
+#endif
+int do_exchange(Steps& st, const char* what, const std::string& a, const std::string& b) {
+  if (const int e = st.next(what)) return e;
+  return ::syscall(SYS_renameat2, AT_FDCWD, a.c_str(), AT_FDCWD, b.c_str(), RENAME_EXCHANGE) == 0 ? 0 : errno;
+}
+bool exchange_unsupported(int e) { return e == EINVAL || e == ENOSYS || e == EOPNOTSUPP || e == ENOTSUP; }
+
+std::string pid_text() { return std::to_string(::getpid()); }
+
+/// `<parent>/.<name>.pcdp-<what>`
+std::string beside(const fs::path& target, const std::string& what) {
+  return (target.parent_path() / ("." + target.filename().string() + ".pcdp-" + what)).string();
+}
+
+/// Absolute, normal form, no trailing separator; the final component's symlinks resolved (the
+/// folder itself is swapped, not a link to it).
+fs::path output_target(const std::string& p) {
+  fs::path t = fs::absolute(fs::path(p)).lexically_normal();
+  if (t.filename().empty()) t = t.parent_path();
   std::error_code ec;
-  if (fs::exists(dir_, ec) && !fs::is_directory(dir_, ec))
-    throw ConfigError("output_dir '" + dir_ + "' exists and is not a folder");
-  fs::create_directories(dir_, ec);
-  if (ec) throw ConfigError("output_dir '" + dir_ + "': cannot create the folder (" + ec.message() + ")");
+  if (fs::is_symlink(fs::symlink_status(t, ec))) {
+    const fs::path c = fs::canonical(t, ec);
+    if (ec) throw OutputError("'" + p + "' is a symbolic link to nothing (" + ec.message() + ")");
+    t = c;
+  }
+  return t;
+}
+
+/// Carries `src` (an entry of the old folder) into the staging folder: hard links for files (a
+/// copy where links are refused), the same tree for folders, the same target for symlinks.
+int carry_over(Steps& st, const fs::path& src, const fs::path& dst, std::string& why) {
+  std::error_code ec;
+  const fs::file_status s = fs::symlink_status(src, ec);
+  if (ec) {
+    why = "cannot carry " + src.string() + " over to the new set";
+    return ec.value();
+  }
+  if (const int e = st.next("carry over")) {
+    why = "cannot carry " + src.string() + " over to the new set";
+    return e;
+  }
+  if (fs::is_symlink(s)) {
+    fs::copy_symlink(src, dst, ec);
+  } else if (fs::is_directory(s)) {
+    // A filesystem mounted inside the output folder is not copied (nor later deleted with the old set).
+    struct stat me {}, up {};
+    if (::stat(src.c_str(), &me) == 0 && ::stat(src.parent_path().c_str(), &up) == 0 && me.st_dev != up.st_dev) {
+      why = src.string() + " is a mount point: it cannot be carried over to the new set (unmount it or write elsewhere)";
+      return EXDEV;
+    }
+    fs::create_directory(dst, src, ec);
+    if (!ec)
+      for (const auto& e : fs::directory_iterator(src, ec)) {
+        if (const int r = carry_over(st, e.path(), dst / e.path().filename(), why)) return r;
+      }
+  } else if (fs::is_regular_file(s)) {
+    if (::link(src.c_str(), dst.c_str()) != 0) {  // another filesystem below, no hard links, protected_hardlinks
+      fs::copy_file(src, dst, ec);
+      if (!ec) fs::permissions(dst, fs::status(src).permissions(), ec);
+    }
+  } else if (s.type() == fs::file_type::fifo) {
+    if (::mkfifo(dst.c_str(), static_cast<mode_t>(s.permissions())) != 0) ec.assign(errno, std::generic_category());
+  } else {
+    why = src.string() + " is a socket or device: it cannot be carried over to the new set";
+    return EINVAL;
+  }
+  if (ec) {
+    why = "cannot carry " + src.string() + " over to the new set";
+    return ec.value() ? ec.value() : EIO;
+  }
+  return 0;
+}
+
+/// Temporaries of earlier versions, which staged products inside the output folder as
+/// `.<product>.tmp-<pid>` (plus `.body`, `.tmp-write.tif`, `.tmp-png`): a killed run left them
+/// there. They are not carried over to a new set.
+bool legacy_temporary(const std::string& n) {
+  if (n.size() < 2 || n[0] != '.') return false;
+  std::string base = n;
+  for (const char* suffix : {".body", ".tmp-write.tif", ".tmp-png"}) {
+    const std::string sfx = suffix;
+    if (base.size() > sfx.size() && base.compare(base.size() - sfx.size(), sfx.size(), sfx) == 0) {
+      base.resize(base.size() - sfx.size());
+      break;
+    }
+  }
+  const auto at = base.rfind(".tmp-");
+  if (at == std::string::npos || at == 0 || at + 5 == base.size()) return false;
+  for (std::size_t i = at + 5; i < base.size(); ++i)
+    if (base[i] < '0' || base[i] > '9') return false;
+  return true;
+}
+
+bool has_control(const std::string& s) {
+  for (unsigned char c : s)
+    if (c < 0x20 || c == 0x7f) return true;
+  return false;
+}
+
+}  // namespace
+
+void detail::set_commit_step_hook(CommitStepHook hook) { g_hook = hook; }
+
+void install_signal_cleanup() {
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sigemptyset(&sa.sa_mask);
+  sa.sa_flags = SA_RESTART;
+  for (int sig : {SIGINT, SIGTERM, SIGHUP}) sigaction(sig, &sa, nullptr);
+}
+
+void check_output_path(const std::string& key, const std::string& path) {
+  if (path.empty()) throw ConfigError(key + ": the output path is empty");
+  if (has_control(path))
+    throw ConfigError(key + ": the output path contains a control character (a newline, tab, ...): refused");
+  const fs::path t = fs::path(path).lexically_normal();
+  const std::string name = (t.filename().empty() ? t.parent_path() : t).filename().string();
+  if (name.empty() || name == "." || name == ".." || t == t.root_path())
+    throw ConfigError(key + ": '" + path + "' names no folder that can be replaced; give a folder below the current one");
+}
+
+// ---- OutputLock ------------------------------------------------------------------------------
+
+OutputLock::OutputLock(const std::string& target) : path_(beside(fs::path(target), "lock")) {
+  const BlockSignals hold;  // the file is registered for the signal cleanup before a signal can act
+  for (int attempt = 0; attempt < 100; ++attempt) {
+    fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0666);
+    if (fd_ < 0)
+      throw OutputError(target + ": cannot create the lock file " + path_ + " (" + errno_text(errno) +
+                        "); the folder that holds the output must be writable");
+    if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+      const int e = errno;
+      char buf[32] = {};
+      const ssize_t n = ::pread(fd_, buf, sizeof buf - 1, 0);
+      ::close(fd_);
+      fd_ = -1;
+      if (e == EWOULDBLOCK)
+        throw OutputError(target + ": another pcd_pipeline process" +
+                          (n > 0 ? " (pid " + std::string(buf, static_cast<std::size_t>(n)) + ")" : std::string()) +
+                          " is writing this output now (it holds " + path_ +
+                          "); wait for it to finish or choose another output");
+      throw OutputError(target + ": cannot lock " + path_ + " (" + errno_text(e) + ")");
+    }
+    // The holder before us removes the file as it releases it: lock the file that is there now.
+    struct stat a {}, b {};
+    if (::fstat(fd_, &a) == 0 && ::stat(path_.c_str(), &b) == 0 && a.st_ino == b.st_ino && a.st_dev == b.st_dev) {
+      const std::string pid = pid_text();
+      if (::ftruncate(fd_, 0) == 0 && ::pwrite(fd_, pid.data(), pid.size(), 0) < 0) {
+      }
+      slot_ = register_temp(path_, 1);
+      return;
+    }
+    ::close(fd_);
+    fd_ = -1;
+  }
+  throw OutputError(target + ": cannot take the lock " + path_ + " (it keeps being replaced)");
+}
+
+OutputLock::~OutputLock() {
+  if (fd_ < 0) return;
+  unregister_temp(slot_);
+  ::unlink(path_.c_str());  // still holding it: a process waiting on the old file retries (above)
+  ::close(fd_);
+}
+
+// ---- StagedOutputs ---------------------------------------------------------------------------
+
+StagedOutputs::StagedOutputs(std::string dir) : dir_(std::move(dir)) {
+  check_output_path("output_dir", dir_);
+  const fs::path t = output_target(dir_);
+  target_ = t.string();
+  std::error_code ec;
+  // Missing parents are created (and removed again if the run fails).
+  std::vector<fs::path> missing;
+  for (fs::path p = t.parent_path(); !p.empty() && !fs::exists(p, ec); p = p.parent_path()) {
+    missing.push_back(p);
+    if (p == p.parent_path()) break;
+  }
+  try {
+    for (auto it = missing.rbegin(); it != missing.rend(); ++it) {
+      if (!fs::create_directory(*it, ec) && ec)
+        throw OutputError("output_dir '" + dir_ + "': cannot create the folder " + it->string() + " (" + ec.message() + ")");
+      created_parents_.push_back(it->string());
+    }
+    if (!fs::is_directory(t.parent_path(), ec))
+      throw OutputError("output_dir '" + dir_ + "': " + t.parent_path().string() + " is not a folder");
+    lock_ = std::make_unique<OutputLock>(target_);
+    const fs::file_status st = fs::symlink_status(t, ec);
+    if (fs::exists(st) && !fs::is_directory(st))
+      throw OutputError("output_dir '" + dir_ + "' exists and is not a folder");
+    // Holding the lock, every .<name>.pcdp-* beside the folder is a leftover of a killed run. A
+    // set renamed aside (no RENAME_EXCHANGE) whose folder is gone is the complete old set: back.
+    const std::string prefix = "." + t.filename().string() + ".pcdp-";
+    std::vector<fs::path> leftovers;
+    for (const auto& e : fs::directory_iterator(t.parent_path(), ec)) {
+      const std::string n = e.path().filename().string();
+      if (n.rfind(prefix, 0) == 0 && n != prefix + "lock") leftovers.push_back(e.path());
+    }
+    for (const auto& l : leftovers) {
+      const std::string n = l.filename().string();
+      if (n.rfind(prefix + "old-", 0) == 0 && !fs::exists(fs::symlink_status(t, ec)) && std::rename(l.c_str(), t.c_str()) == 0)
+        continue;
+      fs::remove_all(l, ec);
+    }
+    staging_ = beside(t, "new-" + pid_text());
+    const BlockSignals hold;
+    if (::mkdir(staging_.c_str(), 0777) != 0)
+      throw OutputError("output_dir '" + dir_ + "': cannot create the staging folder " + staging_ + " (" +
+                        errno_text(errno) + "); the folder that holds the output must be writable");
+    slot_ = register_temp(staging_, 2);
+  } catch (...) {
+    lock_.reset();
+    for (auto it = created_parents_.rbegin(); it != created_parents_.rend(); ++it) ::rmdir(it->c_str());
+    throw;
+  }
 }
 
 StagedOutputs::~StagedOutputs() {
-  if (committed_) return;
-  for (const auto& [tmp, fin] : staged_) {
-    std::remove(tmp.c_str());
-    std::remove((tmp + ".body").c_str());
+  if (!committed_) {
+    std::error_code ec;
+    fs::remove_all(staging_, ec);
+  }
+  unregister_temp(slot_);
+  lock_.reset();
+  if (!committed_)
+    for (auto it = created_parents_.rbegin(); it != created_parents_.rend(); ++it) ::rmdir(it->c_str());
+}
+
+void StagedOutputs::check_replaceable(const std::vector<std::string>& filenames) const {
+  std::error_code ec;
+  for (const auto& f : filenames) {
+    const fs::path p = fs::path(target_) / f;
+    if (fs::is_directory(fs::symlink_status(p, ec)))
+      throw OutputError(final_path(f) + ": a folder has the name of an output of this run; rename or remove it");
   }
 }
 
 std::string StagedOutputs::staged_path(const std::string& filename) {
-  const std::string tmp = (fs::path(dir_) / ("." + filename + ".tmp-" + std::to_string(::getpid()))).string();
-  staged_.emplace_back(tmp, final_path(filename));
-  return tmp;
+  for (const auto& n : names_)
+    if (n == filename) throw std::logic_error("two products named " + filename + " in one run");
+  names_.push_back(filename);
+  return (fs::path(staging_) / filename).string();
 }
 
 std::string StagedOutputs::final_path(const std::string& filename) const {
@@ -42,33 +422,175 @@ std::string StagedOutputs::final_path(const std::string& filename) const {
 
 std::vector<std::string> StagedOutputs::final_paths() const {
   std::vector<std::string> out;
-  for (const auto& [tmp, fin] : staged_) out.push_back(fin);
+  for (const auto& n : names_) out.push_back(final_path(n));
   return out;
 }
 
 void StagedOutputs::commit() {
-  for (const auto& [tmp, fin] : staged_) {
-    if (std::rename(tmp.c_str(), fin.c_str()) != 0)
-      throw std::runtime_error("cannot move " + tmp + " to " + fin + ": " + std::strerror(errno));
+  Steps st;
+  std::error_code ec;
+  const fs::path t(target_), stage(staging_);
+  const auto fail = [&](const std::string& what, int e) {
+    throw OutputError("output_dir '" + dir_ + "': " + what + " (" + errno_text(e) +
+                      "); the folder keeps its earlier contents");
+  };
+  // The new set: whatever the staging folder holds (the products, and anything a command wrote
+  // there directly, such as simulate's truth/ folder).
+  std::set<std::string> products;
+  for (const auto& e : fs::directory_iterator(stage, ec)) products.insert(e.path().filename().string());
+  if (ec) fail("cannot list the staging folder " + staging_, ec.value());
+  const bool had_old = fs::exists(fs::symlink_status(t, ec));
+  if (had_old) {
+    // A folder is replaced only by a folder (a user's folder named like a product stays).
+    for (const auto& n : products)
+      if (fs::is_directory(fs::symlink_status(t / n, ec)) && !fs::is_directory(fs::symlink_status(stage / n, ec)))
+        throw OutputError(final_path(n) + ": a folder has the name of an output of this run; rename or remove it"
+                          " (the folder keeps its earlier contents)");
+    // The old folder's other entries join the new set (hard links: the same files).
+    struct stat s {};
+    if (::stat(target_.c_str(), &s) == 0) ::chmod(staging_.c_str(), s.st_mode & 07777);
+    for (const auto& e : fs::directory_iterator(t, ec)) {
+      const std::string n = e.path().filename().string();
+      if (products.count(n) || legacy_temporary(n)) continue;
+      std::string why;
+      if (const int r = carry_over(st, e.path(), stage / n, why)) fail(why, r);
+    }
+    if (ec) fail("cannot list the folder", ec.value());
+  }
+  {
+    SwapGuard guard;  // SIGINT/SIGTERM wait until the swap is done
+    std::string old_set = staging_;  // where the old set is once swapped
+    if (!had_old) {
+      if (const int e = do_rename(st, "rename into place", staging_, target_)) fail("cannot rename " + staging_ + " into place", e);
+    } else if (int e = do_exchange(st, "exchange", staging_, target_)) {
+      if (!exchange_unsupported(e)) fail("cannot swap " + staging_ + " with the folder", e);
+      // No RENAME_EXCHANGE here: the old set aside, then the new one in its place.
+      old_set = beside(t, "old-" + pid_text());
+      if ((e = do_rename(st, "rename aside", target_, old_set))) fail("cannot rename the folder aside to " + old_set, e);
+      if ((e = do_rename(st, "rename into place", staging_, target_))) {
+        const int back = do_rename(st, "rename back", old_set, target_);
+        if (back)
+          throw OutputError("output_dir '" + dir_ + "': cannot rename the new set into place (" + errno_text(e) +
+                            ") nor the old one back (" + errno_text(back) + "): the earlier contents are in " + old_set +
+                            " (the next run into the folder moves them back)");
+        fail("cannot rename " + staging_ + " into place", e);
+      }
+    }
+    committed_ = true;
+    unregister_temp(slot_);
+    slot_ = -1;
+    if (had_old) {
+      // Entries the user added to the old folder while the run carried it over: moved along.
+      for (const auto& e : fs::directory_iterator(old_set, ec)) {
+        const std::string n = e.path().filename().string();
+        if (products.count(n) || legacy_temporary(n) || fs::exists(fs::symlink_status(t / n, ec))) continue;
+        if (st.next("move late entry") == 0) std::rename(e.path().c_str(), (t / n).c_str());
+      }
+      ec.clear();
+      if (st.next("remove the old set") == 0) fs::remove_all(old_set, ec);
+      else ec = std::make_error_code(std::errc::io_error);
+      if (ec)
+        std::cerr << "warning: output_dir '" << dir_ << "': the new outputs are in place, but the earlier set in "
+                  << old_set << " could not be removed (" << ec.message() << "); the next run into the folder removes it\n";
+    }
+  }
+}
+
+// ---- StagedFiles -----------------------------------------------------------------------------
+
+StagedFiles::~StagedFiles() {
+  for (auto& it : items_) {
+    if (!committed_) ::unlink(it.tmp.c_str());
+    unregister_temp(it.slot);
+  }
+}
+
+std::string StagedFiles::add(const std::string& key, const std::string& final_path) {
+  check_output_path(key, final_path);
+  Item it;
+  const fs::path t = output_target(final_path);
+  it.fin = t.string();
+  for (const auto& o : items_)
+    if (o.fin == it.fin) throw ConfigError(key + ": '" + final_path + "' is already another output of this command");
+  std::error_code ec;
+  const std::string what = key == final_path ? final_path : key + ": " + final_path;
+  if (!fs::is_directory(t.parent_path(), ec))
+    throw OutputError(what + ": " + t.parent_path().string() +
+                      (fs::exists(t.parent_path(), ec) ? " is not a folder" : ": no such folder"));
+  if (fs::is_directory(fs::symlink_status(t, ec))) throw OutputError(what + " is a folder");
+  it.lock = std::make_unique<OutputLock>(it.fin);
+  // Holding the lock: temporaries of this output left by killed processes go.
+  const std::string prefix = "." + t.filename().string() + ".pcdp-tmp-";
+  for (const auto& e : fs::directory_iterator(t.parent_path(), ec)) {
+    const std::string n = e.path().filename().string();
+    if (n.rfind(prefix, 0) == 0) fs::remove(e.path(), ec);
+  }
+  it.tmp = beside(t, "tmp-" + pid_text());
+  const BlockSignals hold;
+  const int fd = ::open(it.tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+  if (fd < 0)
+    throw OutputError(what + ": cannot write in " + t.parent_path().string() + " (" + errno_text(errno) + ")");
+  ::close(fd);
+  it.slot = register_temp(it.tmp, 1);
+  items_.push_back(std::move(it));
+  return items_.back().tmp;
+}
+
+void StagedFiles::commit() {
+  Steps st;
+  std::error_code ec;
+  enum class How { kNew, kExchanged, kBackup };
+  std::vector<How> done;
+  std::vector<std::string> backups;
+  SwapGuard guard;
+  const auto undo = [&] {
+    for (std::size_t i = done.size(); i-- > 0;) {
+      const Item& it = items_[i];
+      if (done[i] == How::kNew) std::rename(it.fin.c_str(), it.tmp.c_str());
+      else if (done[i] == How::kExchanged)
+        ::syscall(SYS_renameat2, AT_FDCWD, it.tmp.c_str(), AT_FDCWD, it.fin.c_str(), RENAME_EXCHANGE);
+      else std::rename(backups[i].c_str(), it.fin.c_str());
+    }
+  };
+  for (const Item& it : items_) {
+    backups.push_back(it.tmp + "-old");
+    int e = 0;
+    if (!fs::exists(fs::symlink_status(it.fin, ec))) {
+      e = do_rename(st, "rename into place", it.tmp, it.fin);
+      if (!e) done.push_back(How::kNew);
+    } else {
+      e = do_exchange(st, "exchange", it.tmp, it.fin);
+      if (!e) done.push_back(How::kExchanged);
+      else if (exchange_unsupported(e)) {
+        e = st.next("back up");
+        if (!e && ::link(it.fin.c_str(), backups.back().c_str()) != 0) e = errno;
+        if (!e) e = do_rename(st, "rename into place", it.tmp, it.fin);
+        if (!e) done.push_back(How::kBackup);
+        else ::unlink(backups.back().c_str());
+      }
+    }
+    if (e) {
+      undo();
+      throw OutputError(it.fin + ": cannot move the new file into place (" + errno_text(e) +
+                        "); every output keeps its earlier contents");
+    }
   }
   committed_ = true;
+  for (std::size_t i = 0; i < items_.size(); ++i) {  // the old files, now under the temporary names
+    if (done[i] == How::kExchanged) ::unlink(items_[i].tmp.c_str());
+    if (done[i] == How::kBackup) ::unlink(backups[i].c_str());
+  }
 }
 
 void write_file_atomic(const std::string& path, const std::string& content) {
-  const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
-  {
-    std::ofstream out(tmp, std::ios::binary);
-    out << content;
-    out.close();
-    if (!out) {
-      std::remove(tmp.c_str());
-      throw std::runtime_error(path + ": cannot write (" + std::strerror(errno) + ")");
-    }
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw std::runtime_error(path + ": cannot rename into place (" + std::strerror(errno) + ")");
-  }
+  StagedFiles files;
+  const std::string tmp = files.add(path, path);
+  std::FILE* f = std::fopen(tmp.c_str(), "wb");
+  const bool ok = f && std::fwrite(content.data(), 1, content.size(), f) == content.size();
+  const int e = errno;
+  if (f && std::fclose(f) != 0 && ok) throw OutputError(path + ": cannot write (" + errno_text(errno) + ")");
+  if (!ok) throw OutputError(path + ": cannot write (" + errno_text(e) + ")");
+  files.commit();
 }
 
 }  // namespace pcdp::io

@@ -3,6 +3,7 @@
 #include <png.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -32,8 +33,10 @@ std::string band_name(int b) {
 
 void rename_into_place(const std::string& tmp, const std::string& path) {
   if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int e = errno;
     std::remove(tmp.c_str());
-    throw std::runtime_error(path + ": cannot rename into place");
+    errno = e;
+    throw OutputError(path + ": cannot rename into place (" + std::string(std::strerror(errno)) + ")");
   }
 }
 }  // namespace
@@ -378,7 +381,7 @@ void write_elevation_png(const ElevationGrid& grid, const std::string& path) {
     const std::string why = img.message;
     png_image_free(&img);
     std::remove(tmp.c_str());
-    throw std::runtime_error(path + ": cannot write the PNG (" + why + ")");
+    throw OutputError(path + ": cannot write the PNG (" + why + ")");
   }
   rename_into_place(tmp, path);
 }

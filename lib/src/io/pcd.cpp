@@ -449,7 +449,7 @@ PcdWriter::PcdWriter(std::string path, std::vector<PcdField> fields)
     : path_(std::move(path)), body_path_(path_ + ".body"), fields_(std::move(fields)) {
   for (const auto& f : fields_) point_bytes_ += f.bytes();
   body_ = std::fopen(body_path_.c_str(), "wb");
-  if (!body_) throw std::runtime_error(body_path_ + ": cannot create (" + std::strerror(errno) + ")");
+  if (!body_) throw OutputError(body_path_ + ": cannot create (" + std::strerror(errno) + ")");
 }
 
 PcdWriter::~PcdWriter() {
@@ -462,13 +462,13 @@ PcdWriter::~PcdWriter() {
 void PcdWriter::append(const std::uint8_t* rows, std::size_t n) {
   if (n == 0) return;
   if (std::fwrite(rows, point_bytes_, n, body_) != n)
-    throw std::runtime_error(body_path_ + ": write failed (" + std::strerror(errno) + ")");
+    throw OutputError(body_path_ + ": write failed (" + std::strerror(errno) + ")");
   points_ += n;
 }
 
 void PcdWriter::close(std::uint64_t height) {
   if (!body_) return;
-  if (std::fflush(body_) != 0) throw std::runtime_error(body_path_ + ": write failed (" + std::strerror(errno) + ")");
+  if (std::fflush(body_) != 0) throw OutputError(body_path_ + ": write failed (" + std::strerror(errno) + ")");
   std::fclose(body_);
   body_ = nullptr;
   if (height == 0 || points_ % height != 0) height = 1;
@@ -497,7 +497,7 @@ void PcdWriter::close(std::uint64_t height) {
   if (in) std::fclose(in);
   if (out && std::fclose(out) != 0) ok = false;
   std::remove(body_path_.c_str());
-  if (!ok) throw std::runtime_error(path_ + ": write failed (" + std::strerror(errno) + ")");
+  if (!ok) throw OutputError(path_ + ": write failed (" + std::strerror(errno) + ")");
 }
 
 std::vector<double> column_values(const PcdTable& t, std::size_t k) {

@@ -3,12 +3,14 @@
 #include <libdeflate.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <limits>
 #include <memory>
 #include <stdexcept>
 
+#include "pcdp/errors.hpp"
 #include "tiff_format.hpp"
 #include "xml_escape.hpp"
 
@@ -189,7 +191,7 @@ void write_float_tiff(const std::string& path, const FloatTiff& t, int level, co
   }
   const std::vector<std::uint8_t> tail = ifd.bytes(ifd_at);
   std::FILE* f = std::fopen(path.c_str(), "wb");
-  if (!f) throw std::runtime_error(path + ": cannot create");
+  if (!f) throw OutputError(path + ": cannot create (" + std::string(std::strerror(errno)) + ")");
   bool ok = std::fwrite(head.data(), 1, head.size(), f) == head.size();
   for (const auto& z : out) ok = ok && std::fwrite(z.data(), 1, z.size(), f) == z.size();
   static const std::uint8_t zeros[8] = {};
@@ -198,8 +200,9 @@ void write_float_tiff(const std::string& path, const FloatTiff& t, int level, co
   ok = ok && std::fwrite(tail.data(), 1, tail.size(), f) == tail.size();
   ok = std::fclose(f) == 0 && ok;
   if (!ok) {
+    const int e = errno;
     std::remove(path.c_str());
-    throw std::runtime_error(path + ": cannot write (disk full?)");
+    throw OutputError(path + ": cannot write (" + std::string(std::strerror(e)) + ")");
   }
 }
 

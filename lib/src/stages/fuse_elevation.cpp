@@ -87,6 +87,9 @@ class FuseElevationStage final : public Stage {
   // Two products, written at once when the run has threads: elevation.tif (and the report's
   // cell count), then elevation.png. Both only read the grid.
   std::size_t finish_parts() const override { return params_.png ? 2 : 1; }
+  std::vector<std::string> products() const override {
+    return params_.png ? std::vector<std::string>{"elevation.tif", "elevation.png"} : std::vector<std::string>{"elevation.tif"};
+  }
   void finish(OutputSink& sink, StageReport& report) override {
     for (std::size_t p = 0; p < finish_parts(); ++p) finish_part(p, sink, report, WorkShare::serial());
   }

@@ -1,6 +1,8 @@
 #include "pcdp/stages/fuse_octomap.hpp"
 
+#include <cerrno>
 #include <chrono>
+#include <cstring>
 #include <fstream>
 
 #include "pcdp/errors.hpp"
@@ -39,6 +41,9 @@ class FuseOctoMapStage final : public Stage {
   // finish: the same leaves as updating a tree pass by pass, at a fraction of the cost).
   void apply(std::unique_ptr<StageWork> work, StageReport&) override { cells_.add(static_cast<Work&>(*work).rays); }
   void process(Pass& pass, StageReport& report) override { apply(compute(pass, report, WorkShare::serial()), report); }
+  std::vector<std::string> products() const override {
+    return write_ot_ ? std::vector<std::string>{"map.bt", "map.ot"} : std::vector<std::string>{"map.bt"};
+  }
   void finish(OutputSink& sink, StageReport& report) override {
     // map.bt straight from the accumulated leaves (the same bytes as building OctoMap's tree and
     // writing it, at a fraction of the time and memory); the tree is built only for map.ot.
@@ -48,14 +53,14 @@ class FuseOctoMapStage final : public Stage {
     {
       std::ofstream out(bt, std::ios::binary);
       if (!out || !out.write(map.bytes.data(), static_cast<std::streamsize>(map.bytes.size())) || !out.flush())
-        throw std::runtime_error(bt + ": cannot write the map");
+        throw OutputError(bt + ": cannot write the map (" + std::string(std::strerror(errno)) + ")");
     }
     if (write_ot_) {
       octomap::OcTree tree = make_octree(params_);
       cells_.build(tree);
       const std::string ot = sink.staged_path("map.ot");
       std::ofstream out(ot, std::ios::binary);
-      if (!out || !tree.write(out) || !out.flush()) throw std::runtime_error(ot + ": cannot write the map");
+      if (!out || !tree.write(out) || !out.flush()) throw OutputError(ot + ": cannot write the map (" + std::string(std::strerror(errno)) + ")");
     }
     report.metrics["write_seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     report.metrics["occupied_leaves"] = static_cast<double>(map.occupied_leaves);
