@@ -23,6 +23,28 @@ constexpr int kFixed = 6;  // elevation variance count min max passes
 constexpr int kPerBand = 4;  // index weight mean count, for each kept height band
 constexpr int kBands = kFixed + kPerBand * ElevationCell::kBands;
 constexpr int kStripBytes = 64 * 1024;  // at least this much of a band per TIFF strip
+constexpr std::uint64_t kStripCells = std::uint64_t{1} << 22;  // larger rasters are written as sparse tiles
+constexpr int kTile = 256;
+constexpr std::int64_t kPngMaxSide = 4096;  // pixels across elevation.png's map, at most
+constexpr std::uint64_t kMaxTiles = 65536;  // a raster spans at most this many tiles (4.29e9 cells)
+
+/// InputError unless the raster of cells ix0 .. ix1 x iy0 .. iy1 spans at most kMaxTiles tiles:
+/// the tile directory (and a picture's canvas) grows with the raster's area, whatever it holds.
+void check_raster_size(std::int64_t ix0, std::int64_t iy0, std::int64_t ix1, std::int64_t iy1, double res,
+                       const std::string& product) {
+  const std::uint64_t nx = static_cast<std::uint64_t>(ix1 - ix0) + 1, ny = static_cast<std::uint64_t>(iy1 - iy0) + 1;
+  const std::uint64_t tiles_x = (nx + kTile - 1) / kTile, tiles_y = (ny + kTile - 1) / kTile;
+  if (tiles_x > kMaxTiles || tiles_y > kMaxTiles || tiles_x * tiles_y > kMaxTiles) {
+    char size[160];
+    std::snprintf(size, sizeof size, "%llu x %llu cells (%.6g m x %.6g m at %.6g m)", static_cast<unsigned long long>(nx),
+                  static_cast<unsigned long long>(ny), static_cast<double>(nx) * res, static_cast<double>(ny) * res, res);
+    throw InputError(product + ": the observed cells span " + std::string(size) + ", " +
+                       std::to_string(tiles_x) + " x " + std::to_string(tiles_y) + " tiles of " + std::to_string(kTile) +
+                       " x " + std::to_string(kTile) + "; the limit is " + std::to_string(kMaxTiles) +
+                       " tiles (4,294,967,296 cells, e.g. 65,536 x 65,536). Check the poses for a jump, or use a "
+                       "coarser resolution or an extent");
+  }
+}
 std::string band_name(int b) {
   static const char* const fixed[kFixed] = {"elevation", "variance", "count", "min", "max", "passes"};
   if (b < kFixed) return fixed[b];
@@ -43,6 +65,7 @@ std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string
     throw std::invalid_argument("DEFLATE level " + std::to_string(deflate_level) + " is outside 1 .. 12");
   std::int64_t ix0 = 0, iy0 = 0, ix1 = 0, iy1 = 0;
   if (!grid.bounds(ix0, iy0, ix1, iy1)) ix0 = iy0 = ix1 = iy1 = 0;
+  check_raster_size(ix0, iy0, ix1, iy1, grid.resolution(), "elevation.tif");
   const int nx = static_cast<int>(ix1 - ix0 + 1), ny = static_cast<int>(iy1 - iy0 + 1);
   detail::FloatTiff t;
   t.width = nx;
@@ -74,29 +97,61 @@ std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string
       names);
   t.gdal_nodata = "nan";
 
+  // The layout (docs/fusion.md): strips, as GDAL writes them, while the raster is at most
+  // kStripCells; past that, tiles of kTile x kTile of which only those holding cells are stored,
+  // so that the file costs what the grid observed, not its bounding box.
+  if (static_cast<std::uint64_t>(nx) * static_cast<std::uint64_t>(ny) > kStripCells) t.tile = kTile;
+  const std::size_t bw = t.tile ? static_cast<std::size_t>(kTile) : static_cast<std::size_t>(nx);
+  const std::size_t bh = t.tile ? static_cast<std::size_t>(kTile) : static_cast<std::size_t>(t.rows_per_strip);
+  const std::size_t across = (static_cast<std::size_t>(nx) + bw - 1) / bw;
+  const std::size_t blocks = across * ((static_cast<std::size_t>(ny) + bh - 1) / bh);
+  // The cells by block (a counting sort): a block's fill visits only its own cells.
+  struct Ref {
+    const ElevationCell* c;
+    std::uint32_t col, row;  ///< in the raster
+  };
+  std::vector<std::size_t> start(blocks + 1, 0);
+  const auto block_of = [&](std::int64_t ix, std::int64_t iy) {
+    return static_cast<std::size_t>(iy1 - iy) / bh * across + static_cast<std::size_t>(ix - ix0) / bw;
+  };
+  grid.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
+    if (!c.empty()) ++start[block_of(ix, iy) + 1];
+  });
+  for (std::size_t s = 0; s < blocks; ++s) start[s + 1] += start[s];
+  std::vector<Ref> refs(start[blocks]);
+  {
+    std::vector<std::size_t> at(start.begin(), start.end() - 1);
+    grid.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
+      if (!c.empty())
+        refs[at[block_of(ix, iy)]++] = {&c, static_cast<std::uint32_t>(ix - ix0), static_cast<std::uint32_t>(iy1 - iy)};
+    });
+  }
+
   const float nan = std::numeric_limits<float>::quiet_NaN();
   // Bands in groups that one visit of the cells fills: the six of DESIGN.md and each height
   // band's four. A cell spans several cache lines, so on a grid of two million cells one visit
-  // per band (22) took 44 % of the write, against 5 visits now. Each task holds its group's
-  // planes (a grid of 100 passes spans millions of pixels: all 22 planes at once measured 90 MB
-  // more peak memory).
+  // per band (22) took 44 % of the write, against 5 visits now. Each task holds one block of its
+  // group's planes.
   t.groups.push_back(kFixed);
   for (int k = 0; k < ElevationCell::kBands; ++k) t.groups.push_back(kPerBand);
   std::size_t surfaces = 0;  // counted by the one task that fills the fixed bands
-  const auto fill = [&](int first, std::vector<std::vector<float>>& planes) {
+  const auto fill = [&](int first, const detail::Block& blk, std::vector<std::vector<float>>& planes) {
     for (auto& p : planes) std::fill(p.begin(), p.end(), nan);
     const std::size_t k = first >= kFixed ? static_cast<std::size_t>((first - kFixed) / kPerBand) : 0;
-    grid.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
-      if (c.empty()) return;
-      const std::size_t at = static_cast<std::size_t>(iy1 - iy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(ix - ix0);
+    bool any = false;
+    for (std::size_t i = start[blk.index]; i < start[blk.index + 1]; ++i) {
+      const ElevationCell& c = *refs[i].c;
+      const std::size_t at = (refs[i].row - static_cast<std::size_t>(blk.y0)) * static_cast<std::size_t>(blk.width) +
+                             (refs[i].col - static_cast<std::size_t>(blk.x0));
       if (first >= kFixed) {
         const HeightBand& hb = c.bands[k];
-        if (hb.empty()) return;
+        if (hb.empty()) continue;
         planes[0][at] = static_cast<float>(hb.index);
         planes[1][at] = static_cast<float>(hb.w);
         planes[2][at] = static_cast<float>(hb.wz / hb.w);
         planes[3][at] = static_cast<float>(hb.count);
-        return;
+        any = true;
+        continue;
       }
       double e = 0, var = 0;
       if (grid.surface(c, e, var)) {
@@ -108,11 +163,13 @@ std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string
       planes[3][at] = c.zmin;
       planes[4][at] = c.zmax;
       planes[5][at] = static_cast<float>(c.passes);
-    });
+      any = true;
+    }
+    return any;
   };
   const std::string tmp = path + ".tmp-write.tif";
   try {
-    detail::write_float_tiff(tmp, t, deflate_level, fill, share);
+    detail::write_float_tiff_blocks(tmp, t, deflate_level, fill, share);
   } catch (...) {
     std::remove(tmp.c_str());
     throw;
@@ -257,6 +314,13 @@ const char* glyph(char c) {
     case '.': return "000000000000010";
     case '-': return "000000111000000";
     case 'm': return "000000111111101";
+    case '=': return "000111000111000";
+    case 'c': return "000011100100011";
+    case 'e': return "000111111100011";
+    case 'l': return "110010010010111";
+    case 'p': return "000111101111100";
+    case 's': return "000011110001110";
+    case 'x': return "000101010101000";
     default: return "000000000000000";
   }
 }
@@ -292,18 +356,31 @@ std::string fmt(double v) {
 }
 }  // namespace
 
-void write_elevation_png(const ElevationGrid& grid, const std::string& path) {
+int write_elevation_png(const ElevationGrid& grid, const std::string& path) {
   std::int64_t ix0 = 0, iy0 = 0, ix1 = 0, iy1 = 0;
   if (!grid.bounds(ix0, iy0, ix1, iy1)) ix0 = iy0 = ix1 = iy1 = 0;
-  const int nx = static_cast<int>(ix1 - ix0 + 1), ny = static_cast<int>(iy1 - iy0 + 1);
+  // A picture more than kPngMaxSide pixels across helps nobody, and its memory grows with the
+  // area: past that, each pixel shows the mean surface of f x f cells (noted on the picture).
+  const std::int64_t side = std::max(ix1 - ix0, iy1 - iy0) + 1;
+  const std::int64_t down = (side + kPngMaxSide - 1) / kPngMaxSide;
+  const int nx = static_cast<int>((ix1 - ix0) / down + 1), ny = static_cast<int>((iy1 - iy0) / down + 1);
   std::vector<double> z(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny), std::numeric_limits<double>::quiet_NaN());
+  std::vector<std::uint32_t> n(down > 1 ? z.size() : 0, 0);  // cells averaged into each pixel
   std::vector<double> vals;
   grid.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
     double e = 0, var = 0;
     if (!grid.surface(c, e, var)) return;
-    z[static_cast<std::size_t>(iy1 - iy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(ix - ix0)] = e;
+    const std::size_t at = static_cast<std::size_t>((iy1 - iy) / down) * static_cast<std::size_t>(nx) + static_cast<std::size_t>((ix - ix0) / down);
+    if (down == 1) {
+      z[at] = e;
+    } else {
+      z[at] = n[at] ? z[at] + e : e;
+      ++n[at];
+    }
     vals.push_back(e);
   });
+  for (std::size_t i = 0; i < n.size(); ++i)
+    if (n[i]) z[i] /= n[i];
   double lo = 0, hi = 1;
   if (!vals.empty()) {  // 2nd and 98th percentiles: a few outliers do not wash out the colours
     // The same order statistics a full sort gives, selected: the lower first, then the upper
@@ -319,7 +396,7 @@ void write_elevation_png(const ElevationGrid& grid, const std::string& path) {
   const int scale = std::max(1, std::min(8, 900 / std::max(nx, ny)));
   const int mapw = nx * scale, maph = ny * scale, W = mapw + 130, H = maph + 60;
   Canvas cv(W, H);
-  const double res = grid.resolution();
+  const double res = grid.resolution() * static_cast<double>(down);  // of a pixel
   const auto at = [&](int col, int row) {
     col = std::clamp(col, 0, nx - 1);
     row = std::clamp(row, 0, ny - 1);
@@ -361,6 +438,9 @@ void write_elevation_png(const ElevationGrid& grid, const std::string& path) {
   for (int x = 0; x < lpx; ++x)
     for (int y = 0; y < 4; ++y) cv.put(10 + x, maph + 25 + y, {0, 0, 0});
   cv.text(10 + lpx + 8, maph + 22, fmt(len) + "m");
+  if (down > 1)
+    cv.text(10 + lpx + 8 + 8 * (static_cast<int>(fmt(len).size()) + 3), maph + 22,
+            "1 px = " + std::to_string(down) + " x " + std::to_string(down) + " cells");
 
   // libpng's simplified writer, which reports errors by return value (no longjmp through our
   // frames), with PNG_IMAGE_FLAG_FAST: no row filters, zlib level 3. It is a preview, not an
@@ -381,6 +461,7 @@ void write_elevation_png(const ElevationGrid& grid, const std::string& path) {
     throw std::runtime_error(path + ": cannot write the PNG (" + why + ")");
   }
   rename_into_place(tmp, path);
+  return static_cast<int>(down);
 }
 
 }  // namespace pcdp::io
