@@ -420,6 +420,7 @@ int cmd_error_budget(const RunArgs& a, const std::string& svg, const std::string
 
 int cmd_merge(const std::vector<std::string>& inputs, const std::string& output, const std::string& png, unsigned threads) {
   if (inputs.size() < 2) throw ConfigError("merge: give two or more elevation grids to merge");
+  io::check_distinct_grids(inputs);  // the same grid twice would count its passes twice
   // The first grid sets the grid; the others are read into it a strip of rows at a time.
   ElevationGrid grid = io::read_elevation_geotiff(inputs[0]);
   for (std::size_t k = 1; k < inputs.size(); ++k) io::merge_elevation_geotiff(grid, inputs[k], inputs[0]);

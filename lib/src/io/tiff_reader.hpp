@@ -11,6 +11,7 @@
 // hostile file cannot make it read out of bounds or allocate without limit.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <utility>
@@ -25,6 +26,12 @@ struct FloatTiffInfo {
   double tiepoint[6] = {0, 0, 0, 0, 0, 0};  ///< ModelTiepointTag (33922), the first tie point
   bool georeferenced = false;               ///< both tags were present
   std::string gdal_metadata;                ///< GDAL_METADATA (42112) XML; empty: absent
+};
+
+/// One row of one block (strip or tile): `cols` pixels from (row, col0), every band's samples.
+struct FloatTiffPiece {
+  int row = 0, col0 = 0, cols = 0;
+  std::vector<std::vector<float>> bands;
 };
 
 /// The raster a strip of rows at a time (a row of tiles, in a tiled file), every band: the memory
@@ -42,7 +49,13 @@ class FloatTiffRows {
   /// The next strip of rows (or row of tiles), top first: rows `first` .. `first + count - 1`,
   /// band b's in `rows[b]` (count * width floats, row `first` first). False after the last.
   /// Throws InputError naming the file and the strip or tile when one is damaged.
+  /// Blocks not stored (offset and byte count 0: a sparse file) read as NaN.
   bool next(int& first, int& count, std::vector<std::vector<float>>& rows);
+  /// f(piece) for every row of every stored block, a block at a time (rows of blocks from the
+  /// top, blocks left to right, rows down): memory is a row of a block of each band, however
+  /// large the strips or tiles, the raster, or the claims of a damaged file; a block's memory
+  /// grows as its data arrives. Blocks not stored (sparse) are skipped. Continues after next().
+  void for_each_piece(const std::function<void(const FloatTiffPiece&)>& f);
 
  private:
   struct Impl;

@@ -4,6 +4,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "pcdp/errors.hpp"
@@ -69,8 +71,8 @@ void fuse_pass(ElevationGrid& grid, const Pass& pass, const FuseElevationParams&
 namespace {
 class FuseElevationStage final : public Stage {
  public:
-  FuseElevationStage(FuseElevationParams p, double fallback_var)
-      : params_(p), fallback_var_(fallback_var), grid_(p.resolution, p.band, p.min_support) {}
+  FuseElevationStage(FuseElevationParams p, double fallback_var, std::string name)
+      : params_(p), fallback_var_(fallback_var), grid_(p.resolution, p.band, p.min_support), name_(std::move(name)) {}
   bool split() const override { return true; }
   // The samples this pass adds, computed on the worker (copied, since later stages may still
   // change the pass); in order, the grid only looks their cells up and sums.
@@ -91,9 +93,19 @@ class FuseElevationStage final : public Stage {
     for (std::size_t p = 0; p < finish_parts(); ++p) finish_part(p, sink, report, WorkShare::serial());
   }
   void finish_part(std::size_t part, OutputSink& sink, StageReport& report, WorkShare& share) override {
+    try {
+      write_part(part, sink, report, share);
+    } catch (const InputError& e) {  // a grid too large for its product: name the stage
+      throw InputError("stage '" + name_ + "' (fuse_elevation): " + e.what());
+    }
+  }
+
+ private:
+  void write_part(std::size_t part, OutputSink& sink, StageReport& report, WorkShare& share) {
     const auto t0 = std::chrono::steady_clock::now();
     if (part == 1) {
-      io::write_elevation_png(grid_, sink.staged_path("elevation.png"));
+      const int down = io::write_elevation_png(grid_, sink.staged_path("elevation.png"));
+      if (down > 1) report.metrics["png_cells_per_pixel"] = static_cast<double>(down * down);
       report.metrics["write_seconds"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       return;
     }
@@ -102,10 +114,10 @@ class FuseElevationStage final : public Stage {
     report.metrics["cells"] = static_cast<double>(cells);
   }
 
- private:
   FuseElevationParams params_;
   double fallback_var_;
   ElevationGrid grid_;
+  std::string name_;
   struct Work final : StageWork {
     std::vector<ElevationSample> samples;
   };
@@ -134,7 +146,7 @@ StageInfo fuse_elevation_stage_info() {
               p.has_extent = true;
             }
             const double s = ctx.config->sensor.range_sigma;
-            return std::make_unique<FuseElevationStage>(p, s > 0 ? s * s : 1e-4);
+            return std::make_unique<FuseElevationStage>(p, s > 0 ? s * s : 1e-4, sc.name);
           }};
 }
 

@@ -11,7 +11,9 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
+#include <vector>
 
 #include "pcdp/elevation.hpp"
 #include "pcdp/work_share.hpp"
@@ -23,6 +25,19 @@ namespace pcdp::io {
 /// surface (the pixels of band 1 that are not nodata).
 std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string& path, int deflate_level = 1,
                              WorkShare& share = WorkShare::serial());
+/// The grid an elevation.tif's GDAL metadata records: PCDP_RESOLUTION and PCDP_BAND (numbers
+/// > 0) and PCDP_MIN_SUPPORT (a whole number in 1 .. 1000000), each exactly once, each value a
+/// number and nothing else. Throws InputError naming `path` and the item.
+struct GridMetadata {
+  double resolution = 0, band = 0;
+  std::uint32_t min_support = 0;
+};
+GridMetadata parse_grid_metadata(const std::string& gdal_metadata_xml, const std::string& path);
+
+/// InputError unless the files are distinct grids: the same file twice (by any path) or two
+/// files of identical bytes would count the same passes twice in a merge.
+void check_distinct_grids(const std::vector<std::string>& paths);
+
 /// Throws InputError when the file is missing, not a GeoTIFF of pcd_pipeline, or lacks the
 /// merge bands.
 ElevationGrid read_elevation_geotiff(const std::string& path);
