@@ -29,7 +29,8 @@ constexpr int kBands = kFixed + kPerBand * ElevationCell::kBands;
 constexpr int kStripBytes = 64 * 1024;  // at least this much of a band per TIFF strip
 constexpr std::uint64_t kStripCells = std::uint64_t{1} << 22;  // larger rasters are written as sparse tiles
 constexpr int kTile = 256;
-constexpr std::int64_t kPngMaxSide = 4096;  // pixels across elevation.png's map, at most
+constexpr std::int64_t kPngMaxSide = 4096;   // grids up to this many cells across: a pixel per cell (or more)
+constexpr std::int64_t kPngDownSide = 2048;  // larger ones: downsampled to at most this many pixels across
 constexpr std::uint64_t kMaxTiles = 65536;  // a raster spans at most this many tiles (4.29e9 cells)
 
 /// InputError unless the raster of cells ix0 .. ix1 x iy0 .. iy1 spans at most kMaxTiles tiles:
@@ -140,6 +141,7 @@ std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string
   for (int k = 0; k < ElevationCell::kBands; ++k) t.groups.push_back(kPerBand);
   std::size_t surfaces = 0;  // counted by the one task that fills the fixed bands
   const auto fill = [&](int first, const detail::Block& blk, std::vector<std::vector<float>>& planes) {
+    if (t.tile && start[blk.index] == start[blk.index + 1]) return false;  // an empty tile: not stored
     for (auto& p : planes) std::fill(p.begin(), p.end(), nan);
     const std::size_t k = first >= kFixed ? static_cast<std::size_t>((first - kFixed) / kPerBand) : 0;
     bool any = false;
@@ -479,9 +481,10 @@ int write_elevation_png(const ElevationGrid& grid, const std::string& path) {
   std::int64_t ix0 = 0, iy0 = 0, ix1 = 0, iy1 = 0;
   if (!grid.bounds(ix0, iy0, ix1, iy1)) ix0 = iy0 = ix1 = iy1 = 0;
   // A picture more than kPngMaxSide pixels across helps nobody, and its memory grows with the
-  // area: past that, each pixel shows the mean surface of f x f cells (noted on the picture).
+  // area: past that, each pixel shows the mean surface of `down` x `down` cells, at most
+  // kPngDownSide pixels across (noted on the picture).
   const std::int64_t side = std::max(ix1 - ix0, iy1 - iy0) + 1;
-  const std::int64_t down = (side + kPngMaxSide - 1) / kPngMaxSide;
+  const std::int64_t down = side <= kPngMaxSide ? 1 : (side + kPngDownSide - 1) / kPngDownSide;
   const int nx = static_cast<int>((ix1 - ix0) / down + 1), ny = static_cast<int>((iy1 - iy0) / down + 1);
   std::vector<double> z(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny), std::numeric_limits<double>::quiet_NaN());
   std::vector<std::uint32_t> n(down > 1 ? z.size() : 0, 0);  // cells averaged into each pixel

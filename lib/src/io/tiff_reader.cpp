@@ -304,9 +304,9 @@ struct FloatTiffRows::Impl {
           b.z.next_in = b.in.data();
           b.z.avail_in = static_cast<uInt>(k);
         }
+        // Damage past the rows wanted (inflate may read ahead) surfaces with the rows after them.
         const int r = inflate(&b.z, Z_NO_FLUSH);
-        if (r == Z_STREAM_END && b.z.avail_out > 0) fail(block_name(s) + " is not a whole DEFLATE (zlib) stream of its rows");
-        if (r != Z_OK && r != Z_STREAM_END) fail(block_name(s) + " is not a whole DEFLATE (zlib) stream of its rows");
+        if (r != Z_OK && b.z.avail_out > 0) fail(block_name(s) + " is not a whole DEFLATE (zlib) stream of its rows");
       }
       got = want;
     }

@@ -53,8 +53,9 @@ void merge_elevation_geotiff(ElevationGrid& grid, const std::string& path,
 /// cells in light grey, a colour bar with heights and a scale bar. 8-bit RGB PNG through libpng's
 /// simplified writer (no row filters, zlib level 3: a preview). Written to a temporary name, then
 /// renamed; throws std::runtime_error naming the path. A grid more than 4,096 cells across is
-/// drawn downsampled: each pixel the mean surface of f x f cells, f the smallest that fits, noted
-/// on the picture ("1 px = f x f cells"). Returns f (1: a pixel per cell).
+/// drawn downsampled, at most 2,048 pixels across: each pixel the mean surface of f x f cells, f
+/// the smallest that fits, noted on the picture ("1 px = f x f cells"). Returns f (1: a pixel per
+/// cell).
 int write_elevation_png(const ElevationGrid& grid, const std::string& path);
 
 }  // namespace pcdp::io
