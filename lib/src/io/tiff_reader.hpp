@@ -6,9 +6,13 @@
 // It reads little-endian ("II") classic TIFF and BigTIFF, strips or tiles, uncompressed or
 // DEFLATE, no predictor, 32-bit IEEE float samples, planar or interleaved; the GeoTIFF pixel
 // scale and tie point; and GDAL's metadata tag. Anything else is an InputError naming the file
-// and the rule. Every offset and count is checked against the file before use, and the raster's
-// size against what its strips or tiles can hold (DEFLATE expands at most 1032 to 1), so a damaged or
-// hostile file cannot make it read out of bounds or allocate without limit.
+// and the rule. Every offset and count is checked against the file before use, and each strip or
+// tile's rows against what its stored bytes can hold (DEFLATE expands at most 1032 to 1) before it
+// is decoded; blocks are inflated (zlib) a row at a time, and a row's memory grows as its data
+// arrives, so a damaged or hostile file cannot make it read out of bounds or allocate beyond what
+// it holds (a 1 MB file claiming 3500 x 3500 x 22 floats costs a row, 308 kB). A block with offset
+// and byte count 0 is not stored (a sparse file, as GDAL's SPARSE_OK and tiff_writer.hpp's tiles
+// write them): nodata.
 #pragma once
 
 #include <functional>
@@ -34,9 +38,8 @@ struct FloatTiffPiece {
   std::vector<std::vector<float>> bands;
 };
 
-/// The raster a strip of rows at a time (a row of tiles, in a tiled file), every band: the memory
-/// it holds is one strip of each band (and one tile, and the directory), not the raster, so a
-/// caller can convert rows as they come.
+/// The raster a strip of rows at a time (a row of tiles, in a tiled file), every band, or a row of
+/// a block at a time (for_each_piece): not the raster, so a caller can convert rows as they come.
 class FloatTiffRows {
  public:
   /// Opens `path` and reads and checks its directory. Throws InputError naming `path`.
