@@ -86,20 +86,25 @@ TEST(GridsHardeningCli, AFineGridOnTheSampleCostsWhatItObserved) {
   EXPECT_LT(std::filesystem::file_size(dir + "/out/elevation.tif"), std::uintmax_t{8} << 20);
 }
 
-// Item 3: a 1.4 km pose jump at 1 mm spans 1.4 million cells each way, past the limit of 65,536
-// tiles: exit 3 naming the stage and the size, not an out-of-memory crash.
+// Item 3: a 1.4 km pose jump at 1 mm spans up to 1.4 million cells each way, past the limit of
+// 65,536 tiles: exit 3 naming the stage, the pass and the size, not an out-of-memory crash. On one
+// thread and on several (the stage's two paths).
 TEST(GridsHardeningCli, APoseJumpPastTheGridLimitIsAnInputErrorNamingTheStage) {
   const std::string dir = test::fresh_dir();
   const std::string poses = jumped_poses(dir, 1000.0);
-  const auto r = run_cli_limited({"run", kSource + "/pipelines/nodding_terrain.yaml", "--output-dir", dir + "/out", "-q",
-                                  "--set", "input.poses=" + poses, "--set", "stages.fuse_elevation.resolution=0.001",
-                                  "--set", "stages.fuse_elevation.png=false"},
-                                 std::size_t{1} << 30);
-  EXPECT_EQ(r.exit_code, 3) << r.err;
-  EXPECT_NE(r.err.find("stage 'fuse_elevation' (fuse_elevation): elevation.tif: the observed cells span "),
-            std::string::npos)
-      << r.err;
-  EXPECT_NE(r.err.find("the limit is 65536 tiles"), std::string::npos) << r.err;
+  for (const char* threads : {"1", "2"}) {
+    const auto r = run_cli_limited({"run", kSource + "/pipelines/nodding_terrain.yaml", "--output-dir", dir + "/out", "-q",
+                                    "--threads", threads, "--set", "input.poses=" + poses, "--set",
+                                    "stages.fuse_elevation.resolution=0.001", "--set", "stages.fuse_elevation.png=false"},
+                                   std::size_t{1} << 30);
+    EXPECT_EQ(r.exit_code, 3) << r.err;
+    // Found as the pass that makes the jump is fused, not after the run: the error names it.
+    EXPECT_NE(r.err.find("stage 'fuse_elevation' (fuse_elevation): with pass " + kSource + "/sample_scans/pass_"),
+              std::string::npos)
+        << r.err;
+    EXPECT_NE(r.err.find(".pcd: elevation.tif: the observed cells span "), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("the limit is 65536 tiles"), std::string::npos) << r.err;
+  }
 }
 
 // Items 6 and 13: merge refuses the same grid twice (one file, or a copy) and a grid whose

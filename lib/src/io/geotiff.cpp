@@ -33,23 +33,27 @@ constexpr std::int64_t kPngMaxSide = 4096;   // grids up to this many cells acro
 constexpr std::int64_t kPngDownSide = 2048;  // larger ones: downsampled to at most this many pixels across
 constexpr std::uint64_t kMaxTiles = 65536;  // a raster spans at most this many tiles (4.29e9 cells)
 
-/// InputError unless the raster of cells ix0 .. ix1 x iy0 .. iy1 spans at most kMaxTiles tiles:
-/// the tile directory (and a picture's canvas) grows with the raster's area, whatever it holds.
-void check_raster_size(std::int64_t ix0, std::int64_t iy0, std::int64_t ix1, std::int64_t iy1, double res,
-                       const std::string& product) {
-  const std::uint64_t nx = static_cast<std::uint64_t>(ix1 - ix0) + 1, ny = static_cast<std::uint64_t>(iy1 - iy0) + 1;
+}  // namespace
+
+void check_elevation_extent(std::int64_t ix0, std::int64_t iy0, std::int64_t ix1, std::int64_t iy1, double res,
+                            const std::string& product) {
+  // Differences in unsigned arithmetic: defined whatever the indices (ix0 <= ix1, iy0 <= iy1).
+  const std::uint64_t nx = std::min<std::uint64_t>(static_cast<std::uint64_t>(ix1) - static_cast<std::uint64_t>(ix0), 1ull << 62) + 1;
+  const std::uint64_t ny = std::min<std::uint64_t>(static_cast<std::uint64_t>(iy1) - static_cast<std::uint64_t>(iy0), 1ull << 62) + 1;
   const std::uint64_t tiles_x = (nx + kTile - 1) / kTile, tiles_y = (ny + kTile - 1) / kTile;
   if (tiles_x > kMaxTiles || tiles_y > kMaxTiles || tiles_x * tiles_y > kMaxTiles) {
     char size[160];
     std::snprintf(size, sizeof size, "%llu x %llu cells (%.6g m x %.6g m at %.6g m)", static_cast<unsigned long long>(nx),
                   static_cast<unsigned long long>(ny), static_cast<double>(nx) * res, static_cast<double>(ny) * res, res);
-    throw InputError(product + ": the observed cells span " + std::string(size) + ", " +
-                       std::to_string(tiles_x) + " x " + std::to_string(tiles_y) + " tiles of " + std::to_string(kTile) +
-                       " x " + std::to_string(kTile) + "; the limit is " + std::to_string(kMaxTiles) +
-                       " tiles (4,294,967,296 cells, e.g. 65,536 x 65,536). Check the poses for a jump, or use a "
-                       "coarser resolution or an extent");
+    throw InputError(product + ": the observed cells span " + std::string(size) + ", " + std::to_string(tiles_x) +
+                     " x " + std::to_string(tiles_y) + " tiles of " + std::to_string(kTile) + " x " +
+                     std::to_string(kTile) + "; the limit is " + std::to_string(kMaxTiles) +
+                     " tiles (4,294,967,296 cells, e.g. 65,536 x 65,536). Check the poses for a jump, or use a "
+                     "coarser resolution or an extent");
   }
 }
+
+namespace {
 std::string band_name(int b) {
   static const char* const fixed[kFixed] = {"elevation", "variance", "count", "min", "max", "passes"};
   if (b < kFixed) return fixed[b];
@@ -70,7 +74,7 @@ std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string
     throw std::invalid_argument("DEFLATE level " + std::to_string(deflate_level) + " is outside 1 .. 12");
   std::int64_t ix0 = 0, iy0 = 0, ix1 = 0, iy1 = 0;
   if (!grid.bounds(ix0, iy0, ix1, iy1)) ix0 = iy0 = ix1 = iy1 = 0;
-  check_raster_size(ix0, iy0, ix1, iy1, grid.resolution(), "elevation.tif");
+  check_elevation_extent(ix0, iy0, ix1, iy1, grid.resolution());
   const int nx = static_cast<int>(ix1 - ix0 + 1), ny = static_cast<int>(iy1 - iy0 + 1);
   detail::FloatTiff t;
   t.width = nx;

@@ -29,6 +29,12 @@ namespace pcdp::io {
 /// 256 x 256 cells (4,294,967,296 cells), before anything is allocated.
 std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string& path, int deflate_level = 1,
                              WorkShare& share = WorkShare::serial());
+/// InputError naming `product` and the size unless a raster of cells ix0 .. ix1 x iy0 .. iy1
+/// spans at most 65,536 tiles of 256 x 256 cells: what write_elevation_geotiff can write (its
+/// tile directory grows with the raster's area, whatever it holds).
+void check_elevation_extent(std::int64_t ix0, std::int64_t iy0, std::int64_t ix1, std::int64_t iy1, double res,
+                            const std::string& product = "elevation.tif");
+
 /// The grid an elevation.tif's GDAL metadata records: PCDP_RESOLUTION and PCDP_BAND (numbers
 /// > 0) and PCDP_MIN_SUPPORT (a whole number in 1 .. 1000000), each exactly once, each value a
 /// number and nothing else. Throws InputError naming `path` and the item.
