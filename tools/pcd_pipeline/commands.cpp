@@ -433,6 +433,7 @@ int cmd_error_budget(const RunArgs& a, const std::string& svg, const std::string
 
 int cmd_merge(const std::vector<std::string>& inputs, const std::string& output, const std::string& png, unsigned threads) {
   if (inputs.size() < 2) throw ConfigError("merge: give two or more elevation grids to merge");
+  io::check_distinct_grids(inputs);  // the same grid twice would count its passes twice
   io::StagedFiles staged;  // checked and locked before the work; the .tif and the PNG committed as a set
   const std::string tif_tmp = staged.add("merge --output", output);
   const std::string png_tmp = png.empty() ? std::string() : staged.add("merge --png", png);

@@ -4,9 +4,13 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -24,6 +28,33 @@ constexpr int kFixed = 6;  // elevation variance count min max passes
 constexpr int kPerBand = 4;  // index weight mean count, for each kept height band
 constexpr int kBands = kFixed + kPerBand * ElevationCell::kBands;
 constexpr int kStripBytes = 64 * 1024;  // at least this much of a band per TIFF strip
+constexpr std::uint64_t kStripCells = std::uint64_t{1} << 22;  // larger rasters are written as sparse tiles
+constexpr int kTile = 256;
+constexpr std::int64_t kPngMaxSide = 4096;   // grids up to this many cells across: a pixel per cell (or more)
+constexpr std::int64_t kPngDownSide = 2048;  // larger ones: downsampled to at most this many pixels across
+constexpr std::uint64_t kMaxTiles = 65536;  // a raster spans at most this many tiles (4.29e9 cells)
+
+}  // namespace
+
+void check_elevation_extent(std::int64_t ix0, std::int64_t iy0, std::int64_t ix1, std::int64_t iy1, double res,
+                            const std::string& product) {
+  // Differences in unsigned arithmetic: defined whatever the indices (ix0 <= ix1, iy0 <= iy1).
+  const std::uint64_t nx = std::min<std::uint64_t>(static_cast<std::uint64_t>(ix1) - static_cast<std::uint64_t>(ix0), 1ull << 62) + 1;
+  const std::uint64_t ny = std::min<std::uint64_t>(static_cast<std::uint64_t>(iy1) - static_cast<std::uint64_t>(iy0), 1ull << 62) + 1;
+  const std::uint64_t tiles_x = (nx + kTile - 1) / kTile, tiles_y = (ny + kTile - 1) / kTile;
+  if (tiles_x > kMaxTiles || tiles_y > kMaxTiles || tiles_x * tiles_y > kMaxTiles) {
+    char size[160];
+    std::snprintf(size, sizeof size, "%llu x %llu cells (%.6g m x %.6g m at %.6g m)", static_cast<unsigned long long>(nx),
+                  static_cast<unsigned long long>(ny), static_cast<double>(nx) * res, static_cast<double>(ny) * res, res);
+    throw InputError(product + ": the observed cells span " + std::string(size) + ", " + std::to_string(tiles_x) +
+                     " x " + std::to_string(tiles_y) + " tiles of " + std::to_string(kTile) + " x " +
+                     std::to_string(kTile) + "; the limit is " + std::to_string(kMaxTiles) +
+                     " tiles (4,294,967,296 cells, e.g. 65,536 x 65,536). Check the poses for a jump, or use a "
+                     "coarser resolution or an extent");
+  }
+}
+
+namespace {
 std::string band_name(int b) {
   static const char* const fixed[kFixed] = {"elevation", "variance", "count", "min", "max", "passes"};
   if (b < kFixed) return fixed[b];
@@ -46,6 +77,7 @@ std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string
     throw std::invalid_argument("DEFLATE level " + std::to_string(deflate_level) + " is outside 1 .. 12");
   std::int64_t ix0 = 0, iy0 = 0, ix1 = 0, iy1 = 0;
   if (!grid.bounds(ix0, iy0, ix1, iy1)) ix0 = iy0 = ix1 = iy1 = 0;
+  check_elevation_extent(ix0, iy0, ix1, iy1, grid.resolution());
   const int nx = static_cast<int>(ix1 - ix0 + 1), ny = static_cast<int>(iy1 - iy0 + 1);
   detail::FloatTiff t;
   t.width = nx;
@@ -77,29 +109,62 @@ std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string
       names);
   t.gdal_nodata = "nan";
 
+  // The layout (docs/fusion.md): strips, as GDAL writes them, while the raster is at most
+  // kStripCells; past that, tiles of kTile x kTile of which only those holding cells are stored,
+  // so that the file costs what the grid observed, not its bounding box.
+  if (static_cast<std::uint64_t>(nx) * static_cast<std::uint64_t>(ny) > kStripCells) t.tile = kTile;
+  const std::size_t bw = t.tile ? static_cast<std::size_t>(kTile) : static_cast<std::size_t>(nx);
+  const std::size_t bh = t.tile ? static_cast<std::size_t>(kTile) : static_cast<std::size_t>(t.rows_per_strip);
+  const std::size_t across = (static_cast<std::size_t>(nx) + bw - 1) / bw;
+  const std::size_t blocks = across * ((static_cast<std::size_t>(ny) + bh - 1) / bh);
+  // The cells by block (a counting sort): a block's fill visits only its own cells.
+  struct Ref {
+    const ElevationCell* c;
+    std::uint32_t col, row;  ///< in the raster
+  };
+  std::vector<std::size_t> start(blocks + 1, 0);
+  const auto block_of = [&](std::int64_t ix, std::int64_t iy) {
+    return static_cast<std::size_t>(iy1 - iy) / bh * across + static_cast<std::size_t>(ix - ix0) / bw;
+  };
+  grid.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
+    if (!c.empty()) ++start[block_of(ix, iy) + 1];
+  });
+  for (std::size_t s = 0; s < blocks; ++s) start[s + 1] += start[s];
+  std::vector<Ref> refs(start[blocks]);
+  {
+    std::vector<std::size_t> at(start.begin(), start.end() - 1);
+    grid.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
+      if (!c.empty())
+        refs[at[block_of(ix, iy)]++] = {&c, static_cast<std::uint32_t>(ix - ix0), static_cast<std::uint32_t>(iy1 - iy)};
+    });
+  }
+
   const float nan = std::numeric_limits<float>::quiet_NaN();
   // Bands in groups that one visit of the cells fills: the six of DESIGN.md and each height
   // band's four. A cell spans several cache lines, so on a grid of two million cells one visit
-  // per band (22) took 44 % of the write, against 5 visits now. Each task holds its group's
-  // planes (a grid of 100 passes spans millions of pixels: all 22 planes at once measured 90 MB
-  // more peak memory).
+  // per band (22) took 44 % of the write, against 5 visits now. Each task holds one block of its
+  // group's planes.
   t.groups.push_back(kFixed);
   for (int k = 0; k < ElevationCell::kBands; ++k) t.groups.push_back(kPerBand);
   std::size_t surfaces = 0;  // counted by the one task that fills the fixed bands
-  const auto fill = [&](int first, std::vector<std::vector<float>>& planes) {
+  const auto fill = [&](int first, const detail::Block& blk, std::vector<std::vector<float>>& planes) {
+    if (t.tile && start[blk.index] == start[blk.index + 1]) return false;  // an empty tile: not stored
     for (auto& p : planes) std::fill(p.begin(), p.end(), nan);
     const std::size_t k = first >= kFixed ? static_cast<std::size_t>((first - kFixed) / kPerBand) : 0;
-    grid.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
-      if (c.empty()) return;
-      const std::size_t at = static_cast<std::size_t>(iy1 - iy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(ix - ix0);
+    bool any = false;
+    for (std::size_t i = start[blk.index]; i < start[blk.index + 1]; ++i) {
+      const ElevationCell& c = *refs[i].c;
+      const std::size_t at = (refs[i].row - static_cast<std::size_t>(blk.y0)) * static_cast<std::size_t>(blk.width) +
+                             (refs[i].col - static_cast<std::size_t>(blk.x0));
       if (first >= kFixed) {
         const HeightBand& hb = c.bands[k];
-        if (hb.empty()) return;
+        if (hb.empty()) continue;
         planes[0][at] = static_cast<float>(hb.index);
         planes[1][at] = static_cast<float>(hb.w);
         planes[2][at] = static_cast<float>(hb.wz / hb.w);
         planes[3][at] = static_cast<float>(hb.count);
-        return;
+        any = true;
+        continue;
       }
       double e = 0, var = 0;
       if (grid.surface(c, e, var)) {
@@ -111,11 +176,13 @@ std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string
       planes[3][at] = c.zmin;
       planes[4][at] = c.zmax;
       planes[5][at] = static_cast<float>(c.passes);
-    });
+      any = true;
+    }
+    return any;
   };
   const std::string tmp = path + ".tmp-write.tif";
   try {
-    detail::write_float_tiff(tmp, t, deflate_level, fill, share);
+    detail::write_float_tiff_blocks(tmp, t, deflate_level, fill, share);
   } catch (...) {
     std::remove(tmp.c_str());
     throw;
@@ -125,28 +192,68 @@ std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string
 }
 
 namespace {
+/// `text` as a number, all of it (no junk after it, no blanks), or an error naming the field.
+double strict_number(const std::string& text, const std::string& path, const char* field) {
+  double v = 0;
+  const char* end = text.data() + text.size();
+  const auto [ptr, ec] = std::from_chars(text.data(), end, v);
+  if (text.empty() || ec != std::errc() || ptr != end || !std::isfinite(v))
+    throw InputError(path + ": GDAL metadata item " + field + " = '" + text + "' is not a number (nothing may follow it)");
+  return v;
+}
+}  // namespace
+
+GridMetadata parse_grid_metadata(const std::string& gdal_metadata_xml, const std::string& path) {
+  std::string r, bnd, sup;
+  bool has_r = false, has_b = false, has_s = false;
+  const auto take = [&](const std::string& name, const std::string& value, const char* field, std::string& out, bool& seen) {
+    if (name != field) return;
+    if (seen) throw InputError(path + ": GDAL metadata item " + field + " is given twice");
+    out = value;
+    seen = true;
+  };
+  for (const auto& [name, value] : detail::gdal_metadata_items(gdal_metadata_xml)) {
+    take(name, value, "PCDP_RESOLUTION", r, has_r);
+    take(name, value, "PCDP_BAND", bnd, has_b);
+    take(name, value, "PCDP_MIN_SUPPORT", sup, has_s);
+  }
+  if (!has_r || !has_b || !has_s)
+    throw InputError(path + ": not an elevation grid of pcd_pipeline (GDAL metadata item " +
+                     (!has_r ? "PCDP_RESOLUTION" : !has_b ? "PCDP_BAND" : "PCDP_MIN_SUPPORT") + " is missing)");
+  GridMetadata m;
+  m.resolution = strict_number(r, path, "PCDP_RESOLUTION");
+  m.band = strict_number(bnd, path, "PCDP_BAND");
+  const double support = strict_number(sup, path, "PCDP_MIN_SUPPORT");
+  if (!(m.resolution > 0)) throw InputError(path + ": GDAL metadata item PCDP_RESOLUTION = " + r + ": must be > 0");
+  if (!(m.band > 0)) throw InputError(path + ": GDAL metadata item PCDP_BAND = " + bnd + ": must be > 0");
+  if (!(support >= 1 && support <= 1000000) || support != std::floor(support))
+    throw InputError(path + ": GDAL metadata item PCDP_MIN_SUPPORT = " + sup + ": must be a whole number in 1 .. 1000000");
+  m.min_support = static_cast<std::uint32_t>(support);
+  return m;
+}
+
+namespace {
 /// An elevation grid's file opened for reading: its grid parameters checked, its cells read a
-/// strip of rows at a time (FloatTiffRows), so the memory it takes is a strip of each band.
+/// row of a strip or tile at a time (FloatTiffRows::for_each_piece), so the memory it takes is a
+/// row of a block of each band, and every cell's state checked as it is read.
 class GridFile {
  public:
   explicit GridFile(const std::string& path) : path_(path), tiff_(path) {
     const detail::FloatTiffInfo& t = tiff_.info();
-    std::string r, bnd, sup;
-    for (const auto& [name, value] : detail::gdal_metadata_items(t.gdal_metadata)) {
-      if (name == "PCDP_RESOLUTION") r = value;
-      if (name == "PCDP_BAND") bnd = value;
-      if (name == "PCDP_MIN_SUPPORT") sup = value;
-    }
-    if (r.empty() || bnd.empty() || sup.empty() || t.bands != kBands || !t.georeferenced)
+    if (t.bands != kBands || !t.georeferenced)
       throw InputError(path + ": not an elevation grid of pcd_pipeline (needs its " + std::to_string(kBands) +
                        " bands, its georeferencing and PCDP_* metadata to merge)");
-    res_ = std::atof(r.c_str());
-    band_ = std::atof(bnd.c_str());
-    const long support = std::atol(sup.c_str());
-    if (!(res_ > 0) || !(band_ > 0) || support < 1 || support > 1000000)
-      throw InputError(path + ": PCDP_RESOLUTION " + r + ", PCDP_BAND " + bnd + " or PCDP_MIN_SUPPORT " + sup +
-                       " is not a positive number");
-    support_ = static_cast<std::uint32_t>(support);
+    const GridMetadata m = parse_grid_metadata(t.gdal_metadata, path);
+    res_ = m.resolution;
+    band_ = m.band;
+    support_ = m.min_support;
+    // The georeferencing states the cell size too: both must say the same (the tie point and the
+    // cells would otherwise land on another grid than the metadata's).
+    for (int k = 0; k < 2; ++k)
+      if (!(std::fabs(t.pixel_scale[k] - res_) <= 1e-9 * res_))
+        throw InputError(path + ": the GeoTIFF pixel scale (ModelPixelScaleTag) " + format_value(t.pixel_scale[0]) +
+                         " x " + format_value(t.pixel_scale[1]) + " m disagrees with GDAL metadata item PCDP_RESOLUTION = " +
+                         format_value(res_) + " m");
     // The raster's north-west corner, as GDAL's geotransform has it (pixel-is-area tie point).
     const double x0 = t.tiepoint[3] - t.tiepoint[0] * t.pixel_scale[0], y0 = t.tiepoint[4] + t.tiepoint[1] * t.pixel_scale[1];
     constexpr double kMaxIndex = 4.5e15;  // cell indices stay exact in a double, and far from overflow
@@ -161,45 +268,74 @@ class GridFile {
   double band() const { return band_; }
   std::uint32_t min_support() const { return support_; }
 
-  /// f(ix, iy, cell) for every cell that holds points, row by row from the north.
+  /// f(ix, iy, cell) for every cell that holds points, a block (strip or tile) at a time. Every
+  /// cell's state is checked first (docs/fusion.md, "merge"): an InputError names the file, the
+  /// cell's row and column in the raster, and the rule.
   template <typename F>
   void for_each_cell(F f) {
-    const int nx = tiff_.info().width;
-    // Counts, pass counts and band indices are whole numbers in the file; anything else is
-    // damage (and would not convert to an integer).
-    const auto whole = [&](float v, double lo, double hi, const char* what, int row, int col) {
-      if (!(v >= lo && v <= hi) || v != std::floor(v))
-        throw InputError(path_ + ": pixel (" + std::to_string(col) + ", " + std::to_string(row) + "): " + what + " " +
-                         std::to_string(v) + " is not a whole number in [" + std::to_string(lo) + ", " +
-                         std::to_string(hi) + "]");
-      return static_cast<double>(v);
-    };
     constexpr double kMaxCount = 4294967295.0, kMaxBand = 2147483647.0;
-    std::vector<std::vector<float>> bands;
-    int first = 0, rows = 0;
-    while (tiff_.next(first, rows, bands))
-      for (int r = 0; r < rows; ++r)
-        for (int col = 0; col < nx; ++col) {
-          const int row = first + r;
-          const std::size_t i = static_cast<std::size_t>(r) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(col);
-          if (std::isnan(bands[2][i]) || bands[2][i] <= 0) continue;
-          ElevationCell c;
-          c.count = static_cast<std::uint32_t>(whole(bands[2][i], 1, kMaxCount, "count", row, col));
-          c.zmin = bands[3][i];
-          c.zmax = bands[4][i];
-          c.passes = static_cast<std::uint32_t>(whole(bands[5][i], 0, kMaxCount, "passes", row, col));
-          for (int k = 0; k < ElevationCell::kBands; ++k) {
-            const std::size_t b0 = static_cast<std::size_t>(kFixed + kPerBand * k);
-            if (std::isnan(bands[b0 + 3][i]) || bands[b0 + 3][i] <= 0) continue;
-            HeightBand hb;
-            hb.index = static_cast<std::int32_t>(whole(bands[b0][i], -kMaxBand - 1, kMaxBand, "height band index", row, col));
-            hb.w = bands[b0 + 1][i];
-            hb.wz = hb.w * static_cast<double>(bands[b0 + 2][i]);
-            hb.count = static_cast<std::uint32_t>(whole(bands[b0 + 3][i], 1, kMaxCount, "height band count", row, col));
-            c.bands[static_cast<std::size_t>(k)] = hb;
-          }
-          f(ix0_ + col, iy1_ - row, c);
+    tiff_.for_each_piece([&](const detail::FloatTiffPiece& p) {
+      const auto& v = p.bands;
+      for (int j = 0; j < p.cols; ++j) {
+        const std::size_t i = static_cast<std::size_t>(j);
+        const int row = p.row, col = p.col0 + j;
+        const auto bad = [&](const std::string& rule) {
+          throw InputError(path_ + ": cell (row " + std::to_string(row) + ", col " + std::to_string(col) + "): " + rule);
+        };
+        const auto val = [&](int b) { return format_value(static_cast<double>(v[static_cast<std::size_t>(b)][i])); };
+        const auto whole = [&](int b, double lo, double hi) {
+          const float x = v[static_cast<std::size_t>(b)][i];
+          if (!(x >= lo && x <= hi) || x != std::floor(x))
+            bad("band " + std::to_string(b + 1) + " (" + band_name(b) + ") = " + val(b) + " is not a whole number in " +
+                format_value(lo) + " .. " + format_value(hi));
+          return static_cast<double>(x);
+        };
+        if (std::isnan(v[2][i])) {  // unobserved: nodata in every band
+          for (int b = 0; b < kBands; ++b)
+            if (!std::isnan(v[static_cast<std::size_t>(b)][i]))
+              bad("band " + std::to_string(b + 1) + " (" + band_name(b) + ") = " + val(b) +
+                  ", but the count is nodata (an unobserved cell holds nothing)");
+          continue;
         }
+        ElevationCell c;
+        c.count = static_cast<std::uint32_t>(whole(2, 1, kMaxCount));
+        c.passes = static_cast<std::uint32_t>(whole(5, 1, c.count));
+        c.zmin = v[3][i];
+        c.zmax = v[4][i];
+        if (!std::isfinite(c.zmin) || !std::isfinite(c.zmax) || !(c.zmin <= c.zmax))
+          bad("min " + val(3) + " and max " + val(4) + " must be finite with min <= max");
+        if (std::isnan(v[0][i]) != std::isnan(v[1][i]) ||
+            (!std::isnan(v[0][i]) && (!std::isfinite(v[0][i]) || !(v[1][i] > 0) || !std::isfinite(v[1][i]))))
+          bad("elevation " + val(0) + " and variance " + val(1) +
+              " must both be nodata or both finite, the variance > 0");
+        double in_bands = 0;
+        for (int k = 0; k < ElevationCell::kBands; ++k) {
+          const int b0 = kFixed + kPerBand * k;
+          int nan = 0;
+          for (int q = 0; q < kPerBand; ++q) nan += std::isnan(v[static_cast<std::size_t>(b0 + q)][i]) ? 1 : 0;
+          if (nan == kPerBand) continue;  // an empty height band
+          const std::string name = "height band " + std::to_string(k);
+          if (nan != 0) bad(name + " is partly nodata (its index, weight, mean and count go together)");
+          if (k > 0 && c.bands[static_cast<std::size_t>(k - 1)].empty())
+            bad(name + " follows an empty one (the kept bands come first, highest first)");
+          HeightBand hb;
+          hb.index = static_cast<std::int32_t>(whole(b0, -kMaxBand - 1, kMaxBand));
+          if (k > 0 && !(hb.index < c.bands[static_cast<std::size_t>(k - 1)].index))
+            bad(name + "'s index " + val(b0) + " is not below the band above it (bands are kept highest first)");
+          const float w = v[static_cast<std::size_t>(b0 + 1)][i], mean = v[static_cast<std::size_t>(b0 + 2)][i];
+          if (!std::isfinite(w) || !(w > 0)) bad(name + "'s weight " + val(b0 + 1) + " must be finite and > 0");
+          if (!std::isfinite(mean)) bad(name + "'s mean " + val(b0 + 2) + " must be finite");
+          hb.w = w;
+          hb.wz = hb.w * static_cast<double>(mean);
+          hb.count = static_cast<std::uint32_t>(whole(b0 + 3, 1, c.count));
+          in_bands += hb.count;
+          c.bands[static_cast<std::size_t>(k)] = hb;
+        }
+        if (in_bands > c.count)
+          bad("the height bands hold " + format_value(in_bands) + " points, more than the cell's count " + val(2));
+        f(ix0_ + col, iy1_ - row, c);
+      }
+    });
   }
 
  private:
@@ -227,7 +363,53 @@ void merge_elevation_geotiff(ElevationGrid& grid, const std::string& path, const
                      " m and min_support " + std::to_string(file.min_support()) + " differ from " + grid_name + "'s (" +
                      format_value(grid.resolution()) + " m, " + format_value(grid.band()) + " m, " +
                      std::to_string(grid.min_support()) + "); grids merge only on the same grid");
-  file.for_each_cell([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) { grid.merge_cell(ix, iy, c); });
+  file.for_each_cell([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
+    // Counts are 32-bit: a sum past that would wrap (the passes and bands' counts are at most it).
+    if (const ElevationCell* have = grid.find(ix, iy); have && std::uint64_t{have->count} + c.count > 4294967295u)
+      throw InputError(path + ": the cell at grid index (" + std::to_string(ix) + ", " + std::to_string(iy) +
+                       ") would hold " + std::to_string(std::uint64_t{have->count} + c.count) +
+                       " points, more than a count can (4294967295)");
+    grid.merge_cell(ix, iy, c);
+  });
+}
+
+void check_distinct_grids(const std::vector<std::string>& paths) {
+  namespace fs = std::filesystem;
+  // Size and a hash of the bytes, read in pieces; equal hashes are compared byte for byte.
+  struct Seen {
+    std::uintmax_t size;
+    std::uint64_t hash;
+  };
+  const auto hash_of = [](const std::string& p) {
+    std::ifstream in(p, std::ios::binary);
+    if (!in) throw InputError(p + ": cannot open");
+    std::uint64_t h = 1469598103934665603ull;  // FNV-1a
+    std::vector<char> buf(1 << 16);
+    while (in.read(buf.data(), static_cast<std::streamsize>(buf.size())) || in.gcount() > 0) {
+      for (std::streamsize i = 0; i < in.gcount(); ++i) h = (h ^ static_cast<unsigned char>(buf[static_cast<std::size_t>(i)])) * 1099511628211ull;
+      if (!in) break;
+    }
+    return h;
+  };
+  const auto same_bytes = [](const std::string& a, const std::string& b) {
+    std::ifstream x(a, std::ios::binary), y(b, std::ios::binary);
+    return std::equal(std::istreambuf_iterator<char>(x), {}, std::istreambuf_iterator<char>(y), {});
+  };
+  std::vector<Seen> seen;
+  for (std::size_t k = 0; k < paths.size(); ++k) {
+    std::error_code ec;
+    const std::uintmax_t size = fs::file_size(paths[k], ec);
+    if (ec) throw InputError(paths[k] + ": cannot read (" + ec.message() + ")");
+    for (std::size_t j = 0; j < k; ++j)
+      if (fs::equivalent(paths[j], paths[k], ec))
+        throw InputError("merge: '" + paths[j] + "' and '" + paths[k] +
+                         "' are the same file: a grid merged with itself counts its passes twice");
+    seen.push_back({size, hash_of(paths[k])});
+    for (std::size_t j = 0; j < k; ++j)
+      if (seen[j].size == size && seen[j].hash == seen[k].hash && same_bytes(paths[j], paths[k]))
+        throw InputError("merge: '" + paths[j] + "' and '" + paths[k] +
+                         "' hold the same bytes: the same grid given twice would count its passes twice");
+  }
 }
 
 // ---- the picture -----------------------------------------------------------------------------
@@ -260,6 +442,13 @@ const char* glyph(char c) {
     case '.': return "000000000000010";
     case '-': return "000000111000000";
     case 'm': return "000000111111101";
+    case '=': return "000111000111000";
+    case 'c': return "000011100100011";
+    case 'e': return "000111111100011";
+    case 'l': return "110010010010111";
+    case 'p': return "000111101111100";
+    case 's': return "000011110001110";
+    case 'x': return "000101010101000";
     default: return "000000000000000";
   }
 }
@@ -295,18 +484,32 @@ std::string fmt(double v) {
 }
 }  // namespace
 
-void write_elevation_png(const ElevationGrid& grid, const std::string& path) {
+int write_elevation_png(const ElevationGrid& grid, const std::string& path) {
   std::int64_t ix0 = 0, iy0 = 0, ix1 = 0, iy1 = 0;
   if (!grid.bounds(ix0, iy0, ix1, iy1)) ix0 = iy0 = ix1 = iy1 = 0;
-  const int nx = static_cast<int>(ix1 - ix0 + 1), ny = static_cast<int>(iy1 - iy0 + 1);
+  // A picture more than kPngMaxSide pixels across helps nobody, and its memory grows with the
+  // area: past that, each pixel shows the mean surface of `down` x `down` cells, at most
+  // kPngDownSide pixels across (noted on the picture).
+  const std::int64_t side = std::max(ix1 - ix0, iy1 - iy0) + 1;
+  const std::int64_t down = side <= kPngMaxSide ? 1 : (side + kPngDownSide - 1) / kPngDownSide;
+  const int nx = static_cast<int>((ix1 - ix0) / down + 1), ny = static_cast<int>((iy1 - iy0) / down + 1);
   std::vector<double> z(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny), std::numeric_limits<double>::quiet_NaN());
+  std::vector<std::uint32_t> n(down > 1 ? z.size() : 0, 0);  // cells averaged into each pixel
   std::vector<double> vals;
   grid.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
     double e = 0, var = 0;
     if (!grid.surface(c, e, var)) return;
-    z[static_cast<std::size_t>(iy1 - iy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(ix - ix0)] = e;
+    const std::size_t at = static_cast<std::size_t>((iy1 - iy) / down) * static_cast<std::size_t>(nx) + static_cast<std::size_t>((ix - ix0) / down);
+    if (down == 1) {
+      z[at] = e;
+    } else {
+      z[at] = n[at] ? z[at] + e : e;
+      ++n[at];
+    }
     vals.push_back(e);
   });
+  for (std::size_t i = 0; i < n.size(); ++i)
+    if (n[i]) z[i] /= n[i];
   double lo = 0, hi = 1;
   if (!vals.empty()) {  // 2nd and 98th percentiles: a few outliers do not wash out the colours
     // The same order statistics a full sort gives, selected: the lower first, then the upper
@@ -322,7 +525,7 @@ void write_elevation_png(const ElevationGrid& grid, const std::string& path) {
   const int scale = std::max(1, std::min(8, 900 / std::max(nx, ny)));
   const int mapw = nx * scale, maph = ny * scale, W = mapw + 130, H = maph + 60;
   Canvas cv(W, H);
-  const double res = grid.resolution();
+  const double res = grid.resolution() * static_cast<double>(down);  // of a pixel
   const auto at = [&](int col, int row) {
     col = std::clamp(col, 0, nx - 1);
     row = std::clamp(row, 0, ny - 1);
@@ -364,6 +567,9 @@ void write_elevation_png(const ElevationGrid& grid, const std::string& path) {
   for (int x = 0; x < lpx; ++x)
     for (int y = 0; y < 4; ++y) cv.put(10 + x, maph + 25 + y, {0, 0, 0});
   cv.text(10 + lpx + 8, maph + 22, fmt(len) + "m");
+  if (down > 1)
+    cv.text(10 + lpx + 8 + 8 * (static_cast<int>(fmt(len).size()) + 3), maph + 22,
+            "1 px = " + std::to_string(down) + " x " + std::to_string(down) + " cells");
 
   // libpng's simplified writer, which reports errors by return value (no longjmp through our
   // frames), with PNG_IMAGE_FLAG_FAST: no row filters, zlib level 3. It is a preview, not an
@@ -384,6 +590,7 @@ void write_elevation_png(const ElevationGrid& grid, const std::string& path) {
     throw OutputError(path + ": cannot write the PNG (" + why + ")");
   }
   rename_into_place(tmp, path);
+  return static_cast<int>(down);
 }
 
 }  // namespace pcdp::io

@@ -1,6 +1,6 @@
 #include "tiff_reader.hpp"
 
-#include <libdeflate.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -25,8 +25,22 @@ std::uint64_t le(const std::uint8_t* p, int bytes) {
   return v;
 }
 
-struct DecompressorFree {
-  void operator()(libdeflate_decompressor* d) const { libdeflate_free_decompressor(d); }
+constexpr std::uint64_t kChunkFloats = 256 * 1024;  // a row's buffer grows by at most this as data arrives
+constexpr std::uint64_t kInBytes = 64 * 1024;       // compressed bytes read at a time
+
+/// One stored block (strip or tile) of one plane, decoded a row at a time as its bytes are read:
+/// the memory it takes is its input buffer and zlib's window, whatever the block's size.
+struct BlockStream {
+  std::uint64_t off = 0, left = 0;  ///< the stored bytes not read yet
+  bool deflate = false, sparse = false, open = false;
+  z_stream z{};
+  std::vector<std::uint8_t> in;
+  BlockStream() = default;
+  BlockStream(const BlockStream&) = delete;
+  BlockStream& operator=(const BlockStream&) = delete;
+  ~BlockStream() {
+    if (open) inflateEnd(&z);
+  }
 };
 
 const char* tag_name(std::uint16_t tag) {
@@ -68,9 +82,7 @@ struct FloatTiffRows::Impl {
   bool tiled = false;
   std::vector<std::uint64_t> offsets, counts;
   std::uint64_t next_down = 0;  ///< the next row of blocks
-  std::vector<std::uint8_t> packed;
-  std::vector<float> buf;
-  std::unique_ptr<libdeflate_decompressor, DecompressorFree> inflate;
+  std::vector<float> row;       ///< one row of a pixel-interleaved block
 
   [[noreturn]] void fail(const std::string& what) const { throw InputError(path + ": " + what); }
 
@@ -205,13 +217,6 @@ struct FloatTiffRows::Impl {
       if (rps < 1) fail("tag 278 (RowsPerStrip) = 0");
     }
 
-    // A raster's samples cannot outgrow what its strips can hold: DEFLATE expands at most 1032
-    // to 1; uncompressed strips hold their bytes. Checked before anything is allocated.
-    const std::uint64_t cells = w * h;  // < 2^62: both below 2^31
-    if (spp > (std::uint64_t{1} << 62) / 4 / cells || cells * spp * 4 > size * 1032 + 4096)
-      fail("a raster of " + std::to_string(w) + " x " + std::to_string(h) + " x " + std::to_string(spp) +
-           " floats is larger than its " + std::to_string(size) + " bytes can hold");
-
     strips_down = (h + rps - 1) / rps;
     const std::uint64_t blocks = strips_down * across * (planar == 2 ? spp : 1);
     offsets = values(tiled ? 324 : 273);
@@ -245,28 +250,108 @@ struct FloatTiffRows::Impl {
       const char* c = reinterpret_cast<const char*>(md->second.value.data());
       info.gdal_metadata.assign(c, std::find(c, c + md->second.value.size(), '\0'));
     }
-    inflate.reset(libdeflate_alloc_decompressor());
-    if (!inflate) throw std::runtime_error(path + ": cannot set up DEFLATE");
   }
 
-  /// Block `s` (`rows` rows of bw pixels, `per_pixel` samples a pixel) decoded into buf.
-  void decode(std::uint64_t s, std::uint64_t rows, std::uint64_t per_pixel) {
-    const std::uint64_t need = rows * bw * per_pixel * 4;
-    const std::string what = (tiled ? "tile " : "strip ") + std::to_string(s);
+  std::string block_name(std::uint64_t s) const { return (tiled ? "tile " : "strip ") + std::to_string(s); }
+
+  /// Opens block `s`, of which `rows` rows of bw pixels and `per_pixel` samples a pixel will be
+  /// read. Checked before anything is allocated: the block lies in the file, and its bytes can
+  /// hold those rows (DEFLATE expands at most 1032 to 1; uncompressed, they are the bytes). A
+  /// block with offset and byte count 0 is not stored (a sparse file): nodata.
+  void open_block(std::uint64_t s, std::uint64_t rows, std::uint64_t per_pixel, BlockStream& b) {
+    b.sparse = offsets[s] == 0 && counts[s] == 0;
+    if (b.sparse) return;
+    const std::string what = block_name(s);
     check_within(offsets[s], counts[s], what);
-    if (compression == 1) {
-      if (counts[s] < need) fail(what + " holds " + std::to_string(counts[s]) + " bytes, not " + std::to_string(need));
-      read(offsets[s], need, what, reinterpret_cast<std::uint8_t*>(buf.data()));
+    const std::uint64_t need = rows * bw * per_pixel * 4;  // < 2^62: each factor is checked
+    if (compression == 1 ? counts[s] < need : need > counts[s] * 1032 + 1024)
+      fail(what + " holds " + std::to_string(counts[s]) + " bytes, too few for " + std::to_string(rows) + " rows of " +
+           std::to_string(bw) + " x " + std::to_string(per_pixel) + " floats");
+    b.off = offsets[s];
+    b.left = counts[s];
+    b.deflate = compression != 1;
+    if (b.deflate) {
+      if (inflateInit(&b.z) != Z_OK) throw std::runtime_error(path + ": cannot set up DEFLATE");
+      b.open = true;
+    }
+  }
+
+  /// The next row of an open block, n floats, into `out` (grown as the data arrives).
+  void read_row(BlockStream& b, std::uint64_t n, std::vector<float>& out, std::uint64_t s) {
+    out.clear();
+    if (b.sparse) {
+      out.assign(n, std::numeric_limits<float>::quiet_NaN());
       return;
     }
-    packed.resize(counts[s]);
-    read(offsets[s], counts[s], what, packed.data());
-    // A last strip may be stored full height (libtiff) or cut to the rows left (GDAL): both do.
-    // A tile is always stored whole.
-    std::size_t got = 0;
-    const libdeflate_result res = libdeflate_zlib_decompress(inflate.get(), packed.data(), packed.size(), buf.data(),
-                                                             buf.size() * sizeof(float), &got);
-    if (res != LIBDEFLATE_SUCCESS || got < need) fail(what + " is not a whole DEFLATE (zlib) stream of its rows");
+    std::uint64_t got = 0;  // floats
+    while (got < n) {
+      const std::uint64_t want = std::min(n, got + kChunkFloats);
+      out.resize(want);
+      if (!b.deflate) {
+        read(b.off, (want - got) * 4, block_name(s), reinterpret_cast<std::uint8_t*>(out.data() + got));
+        b.off += (want - got) * 4;
+        got = want;
+        continue;
+      }
+      b.z.next_out = reinterpret_cast<Bytef*>(out.data()) + got * 4;
+      b.z.avail_out = static_cast<uInt>((want - got) * 4);
+      while (b.z.avail_out > 0) {
+        if (b.z.avail_in == 0) {
+          if (b.left == 0) fail(block_name(s) + " is not a whole DEFLATE (zlib) stream of its rows");
+          const std::uint64_t k = std::min(b.left, kInBytes);
+          b.in.resize(k);
+          read(b.off, k, block_name(s), b.in.data());
+          b.off += k;
+          b.left -= k;
+          b.z.next_in = b.in.data();
+          b.z.avail_in = static_cast<uInt>(k);
+        }
+        // Damage past the rows wanted (inflate may read ahead) surfaces with the rows after them.
+        const int r = inflate(&b.z, Z_NO_FLUSH);
+        if (r != Z_OK && b.z.avail_out > 0) fail(block_name(s) + " is not a whole DEFLATE (zlib) stream of its rows");
+      }
+      got = want;
+    }
+  }
+
+  /// f(piece) for each row of the blocks in row `down` of blocks, block after block (left to
+  /// right), every band's samples of the row's part in that block. Blocks of which no plane is
+  /// stored are skipped when `skip_sparse`.
+  template <typename F>
+  void block_row(std::uint64_t down, bool skip_sparse, FloatTiffPiece& piece, F&& f) {
+    const std::uint64_t n = std::min(rps, h - down * rps);
+    const std::uint64_t per_pixel = planar == 2 ? 1 : spp;
+    const std::uint64_t planes = planar == 2 ? spp : 1, per_plane = strips_down * across;
+    piece.bands.resize(spp);
+    for (std::uint64_t j = 0; j < across; ++j) {
+      std::vector<BlockStream> streams(planes);
+      bool any = false;
+      for (std::uint64_t p = 0; p < planes; ++p) {
+        const std::uint64_t s = p * per_plane + down * across + j;
+        open_block(s, n, per_pixel, streams[p]);
+        any = any || !streams[p].sparse;
+      }
+      if (!any && skip_sparse) continue;
+      const std::uint64_t x0 = j * bw, cols = std::min(bw, w - x0);
+      piece.col0 = static_cast<int>(x0);
+      piece.cols = static_cast<int>(cols);
+      for (std::uint64_t r = 0; r < n; ++r) {
+        if (planar == 2) {
+          for (std::uint64_t p = 0; p < planes; ++p) {
+            read_row(streams[p], bw, piece.bands[p], p * per_plane + down * across + j);
+            piece.bands[p].resize(cols);
+          }
+        } else {
+          read_row(streams[0], bw * spp, this->row, down * across + j);
+          for (std::uint64_t b = 0; b < spp; ++b) {
+            piece.bands[b].resize(cols);
+            for (std::uint64_t c = 0; c < cols; ++c) piece.bands[b][c] = this->row[c * spp + b];
+          }
+        }
+        piece.row = static_cast<int>(down * rps + r);
+        f(static_cast<const FloatTiffPiece&>(piece));
+      }
+    }
   }
 };
 
@@ -282,28 +367,29 @@ bool FloatTiffRows::next(int& first, int& count, std::vector<std::vector<float>>
   if (m.next_down >= m.strips_down) return false;
   const std::uint64_t down = m.next_down++;
   const std::uint64_t n = std::min(m.rps, m.h - down * m.rps);
-  const std::uint64_t per_pixel = m.planar == 2 ? 1 : m.spp;  // samples of a pixel in one block
-  m.buf.resize(m.rps * m.bw * per_pixel);
-  rows.resize(m.spp);
-  for (auto& r : rows) r.resize(n * m.w);
-  const std::uint64_t planes = m.planar == 2 ? m.spp : 1, per_plane = m.strips_down * m.across;
-  for (std::uint64_t p = 0; p < planes; ++p)
-    for (std::uint64_t j = 0; j < m.across; ++j) {
-      m.decode(p * per_plane + down * m.across + j, m.tiled ? m.rps : n, per_pixel);
-      const std::uint64_t x0 = j * m.bw, cols = std::min(m.bw, m.w - x0);
-      for (std::uint64_t r = 0; r < n; ++r) {
-        const float* src = m.buf.data() + r * m.bw * per_pixel;
-        if (m.planar == 2) {
-          std::memcpy(rows[p].data() + r * m.w + x0, src, cols * sizeof(float));
-          continue;
-        }
-        for (std::uint64_t c = 0; c < cols; ++c)
-          for (std::uint64_t b = 0; b < m.spp; ++b) rows[b][r * m.w + x0 + c] = src[c * m.spp + b];
-      }
-    }
   first = static_cast<int>(down * m.rps);
   count = static_cast<int>(n);
+  // The rows' memory, in steps as the blocks' rows arrive: a block not stored costs nothing
+  // to read but its nodata here.
+  rows.resize(m.spp);
+  for (auto& r : rows) r.clear();
+  FloatTiffPiece piece;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  m.block_row(down, true, piece, [&](const FloatTiffPiece& p) {
+    for (std::uint64_t b = 0; b < m.spp; ++b) {
+      const std::size_t at = static_cast<std::size_t>(p.row - first) * m.w + static_cast<std::size_t>(p.col0);
+      if (rows[b].size() < at + static_cast<std::size_t>(p.cols)) rows[b].resize(at + static_cast<std::size_t>(p.cols), nan);
+      std::memcpy(rows[b].data() + at, p.bands[b].data(), static_cast<std::size_t>(p.cols) * sizeof(float));
+    }
+  });
+  for (auto& r : rows) r.resize(n * m.w, nan);
   return true;
+}
+
+void FloatTiffRows::for_each_piece(const std::function<void(const FloatTiffPiece&)>& f) {
+  Impl& m = *impl_;
+  FloatTiffPiece piece;
+  for (; m.next_down < m.strips_down; ++m.next_down) m.block_row(m.next_down, true, piece, f);
 }
 
 FloatTiffData read_float_tiff(const std::string& path) {
@@ -311,12 +397,13 @@ FloatTiffData read_float_tiff(const std::string& path) {
   FloatTiffData t;
   static_cast<FloatTiffInfo&>(t) = tiff.info();
   const std::size_t w = static_cast<std::size_t>(t.width);
-  t.planes.assign(static_cast<std::size_t>(t.bands), std::vector<float>(w * static_cast<std::size_t>(t.height)));
+  t.planes.resize(static_cast<std::size_t>(t.bands));
   std::vector<std::vector<float>> rows;
   int first = 0, count = 0;
+  // Grown a row of blocks at a time, as the rows arrive.
   while (tiff.next(first, count, rows))
-    for (std::size_t b = 0; b < rows.size(); ++b)
-      std::memcpy(t.planes[b].data() + static_cast<std::size_t>(first) * w, rows[b].data(), rows[b].size() * sizeof(float));
+    for (std::size_t b = 0; b < rows.size(); ++b) t.planes[b].insert(t.planes[b].end(), rows[b].begin(), rows[b].end());
+  (void)w;
   return t;
 }
 

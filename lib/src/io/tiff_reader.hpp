@@ -6,11 +6,16 @@
 // It reads little-endian ("II") classic TIFF and BigTIFF, strips or tiles, uncompressed or
 // DEFLATE, no predictor, 32-bit IEEE float samples, planar or interleaved; the GeoTIFF pixel
 // scale and tie point; and GDAL's metadata tag. Anything else is an InputError naming the file
-// and the rule. Every offset and count is checked against the file before use, and the raster's
-// size against what its strips or tiles can hold (DEFLATE expands at most 1032 to 1), so a damaged or
-// hostile file cannot make it read out of bounds or allocate without limit.
+// and the rule. Every offset and count is checked against the file before use, and each strip or
+// tile's rows against what its stored bytes can hold (DEFLATE expands at most 1032 to 1) before it
+// is decoded; blocks are inflated (zlib) a row at a time, and a row's memory grows as its data
+// arrives, so a damaged or hostile file cannot make it read out of bounds or allocate beyond what
+// it holds (a 1 MB file claiming 3500 x 3500 x 22 floats costs a row, 308 kB). A block with offset
+// and byte count 0 is not stored (a sparse file, as GDAL's SPARSE_OK and tiff_writer.hpp's tiles
+// write them): nodata.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <utility>
@@ -27,9 +32,14 @@ struct FloatTiffInfo {
   std::string gdal_metadata;                ///< GDAL_METADATA (42112) XML; empty: absent
 };
 
-/// The raster a strip of rows at a time (a row of tiles, in a tiled file), every band: the memory
-/// it holds is one strip of each band (and one tile, and the directory), not the raster, so a
-/// caller can convert rows as they come.
+/// One row of one block (strip or tile): `cols` pixels from (row, col0), every band's samples.
+struct FloatTiffPiece {
+  int row = 0, col0 = 0, cols = 0;
+  std::vector<std::vector<float>> bands;
+};
+
+/// The raster a strip of rows at a time (a row of tiles, in a tiled file), every band, or a row of
+/// a block at a time (for_each_piece): not the raster, so a caller can convert rows as they come.
 class FloatTiffRows {
  public:
   /// Opens `path` and reads and checks its directory. Throws InputError naming `path`.
@@ -42,7 +52,13 @@ class FloatTiffRows {
   /// The next strip of rows (or row of tiles), top first: rows `first` .. `first + count - 1`,
   /// band b's in `rows[b]` (count * width floats, row `first` first). False after the last.
   /// Throws InputError naming the file and the strip or tile when one is damaged.
+  /// Blocks not stored (offset and byte count 0: a sparse file) read as NaN.
   bool next(int& first, int& count, std::vector<std::vector<float>>& rows);
+  /// f(piece) for every row of every stored block, a block at a time (rows of blocks from the
+  /// top, blocks left to right, rows down): memory is a row of a block of each band, however
+  /// large the strips or tiles, the raster, or the claims of a damaged file; a block's memory
+  /// grows as its data arrives. Blocks not stored (sparse) are skipped. Continues after next().
+  void for_each_piece(const std::function<void(const FloatTiffPiece&)>& f);
 
  private:
   struct Impl;

@@ -104,45 +104,114 @@ std::string gdal_metadata(const std::vector<std::pair<std::string, std::string>>
   return xml + "</GDALMetadata>\n";
 }
 
+namespace {
+/// The layout write_float_tiff*() share: strips (t.tile == 0: the raster's width, rows_per_strip
+/// rows, the last cut to the rows left) or tiles (t.tile x t.tile, stored whole, padded at the right
+/// and bottom edges), band after band (PlanarConfiguration 2).
+struct Layout {
+  std::size_t w, h, bw, bh, across, down, blocks, nb;
+  bool tiled;
+  std::vector<int> first;  ///< first band of each group, then the end
+  Layout(const std::string& path, const FloatTiff& t) {
+    if (t.width < 1 || t.height < 1 || t.bands < 1 || t.rows_per_strip < 1)
+      throw std::invalid_argument(path + ": a TIFF needs at least one row, column, band and row per strip");
+    if (t.tile != 0 && (t.tile < 16 || t.tile % 16 != 0))
+      throw std::invalid_argument(path + ": TIFF tiles are a multiple of 16 wide and long");
+    tiled = t.tile != 0;
+    w = static_cast<std::size_t>(t.width);
+    h = static_cast<std::size_t>(t.height);
+    bw = t.tile ? static_cast<std::size_t>(t.tile) : w;
+    bh = t.tile ? static_cast<std::size_t>(t.tile) : static_cast<std::size_t>(t.rows_per_strip);
+    across = (w + bw - 1) / bw;
+    down = (h + bh - 1) / bh;
+    blocks = across * down;
+    nb = static_cast<std::size_t>(t.bands);
+    first.assign(1, 0);
+    for (int g : t.groups.empty() ? std::vector<int>(nb, 1) : t.groups) {
+      if (g < 1) throw std::invalid_argument(path + ": an empty group of bands");
+      first.push_back(first.back() + g);
+    }
+    if (first.back() != t.bands) throw std::invalid_argument(path + ": the groups do not add up to the bands");
+  }
+  /// Rows block `s` is stored with: a tile's whole length; a strip's rows, the last one cut.
+  std::size_t rows(std::size_t s) const { return tiled ? bh : std::min(bh, h - (s / across) * bh); }
+};
+
+/// Compresses blocks into `out` (one vector per band and block, band after band); an empty
+/// vector is a block not stored (sparse).
+class Compressor {
+ public:
+  Compressor(const std::string& path, int level) : path_(path), c_(libdeflate_alloc_compressor(level)) {
+    if (!c_) throw std::runtime_error(path + ": cannot set up DEFLATE at level " + std::to_string(level));
+  }
+  void operator()(const float* data, std::size_t n, std::vector<std::uint8_t>& z) {
+    const std::size_t in = n * sizeof(float);
+    z.resize(libdeflate_zlib_compress_bound(c_.get(), in));
+    // TIFF stores little-endian floats in an "II" file: the plane's own bytes on this host.
+    static_assert(std::numeric_limits<float>::is_iec559, "IEEE float");
+    const std::size_t got = libdeflate_zlib_compress(c_.get(), data, in, z.data(), z.size());
+    if (got == 0) throw std::runtime_error(path_ + ": DEFLATE failed");
+    z.resize(got);
+    z.shrink_to_fit();
+  }
+
+ private:
+  const std::string& path_;
+  std::unique_ptr<libdeflate_compressor, CompressorFree> c_;
+};
+
+void write_file(const std::string& path, const FloatTiff& t, const Layout& L,
+                const std::vector<std::vector<std::uint8_t>>& out);
+}  // namespace
+
 void write_float_tiff(const std::string& path, const FloatTiff& t, int level, const PlaneFill& fill,
                       WorkShare& share) {
-  if (t.width < 1 || t.height < 1 || t.bands < 1 || t.rows_per_strip < 1)
-    throw std::invalid_argument(path + ": a TIFF needs at least one row, column, band and row per strip");
-  const std::size_t w = static_cast<std::size_t>(t.width), h = static_cast<std::size_t>(t.height);
-  const std::size_t rps = static_cast<std::size_t>(t.rows_per_strip);
-  const std::size_t strips = (h + rps - 1) / rps;
-  const std::size_t nb = static_cast<std::size_t>(t.bands);
-  std::vector<int> first(1, 0);  // first band of each group, then the end
-  for (int g : t.groups.empty() ? std::vector<int>(nb, 1) : t.groups) {
-    if (g < 1) throw std::invalid_argument(path + ": an empty group of bands");
-    first.push_back(first.back() + g);
-  }
-  if (first.back() != t.bands) throw std::invalid_argument(path + ": the groups do not add up to the bands");
+  if (t.tile != 0) throw std::invalid_argument(path + ": whole planes are written as strips; tiles take a BlockFill");
+  const Layout L(path, t);
   // Compressed strips, band after band (PlanarConfiguration 2 orders them so).
-  std::vector<std::vector<std::uint8_t>> out(nb * strips);
-  share.run(first.size() - 1, [&](std::size_t g) {
-    std::unique_ptr<libdeflate_compressor, CompressorFree> c(libdeflate_alloc_compressor(level));
-    if (!c) throw std::runtime_error(path + ": cannot set up DEFLATE at level " + std::to_string(level));
-    std::vector<std::vector<float>> planes(static_cast<std::size_t>(first[g + 1] - first[g]), std::vector<float>(w * h));
-    fill(first[g], planes);
+  std::vector<std::vector<std::uint8_t>> out(L.nb * L.blocks);
+  share.run(L.first.size() - 1, [&](std::size_t g) {
+    Compressor compress(path, level);
+    std::vector<std::vector<float>> planes(static_cast<std::size_t>(L.first[g + 1] - L.first[g]), std::vector<float>(L.w * L.h));
+    fill(L.first[g], planes);
     for (std::size_t j = 0; j < planes.size(); ++j) {
-      const std::vector<float>& plane = planes[j];
-      const std::size_t b = static_cast<std::size_t>(first[g]) + j;
-      for (std::size_t s = 0; s < strips; ++s) {
-        const std::size_t rows = std::min(rps, h - s * rps);
-        const std::size_t in = rows * w * sizeof(float);
-        std::vector<std::uint8_t>& z = out[b * strips + s];
-        z.resize(libdeflate_zlib_compress_bound(c.get(), in));
-        // TIFF stores little-endian floats in an "II" file: the plane's own bytes on this host.
-        static_assert(std::numeric_limits<float>::is_iec559, "IEEE float");
-        const std::size_t n = libdeflate_zlib_compress(c.get(), plane.data() + s * rps * w, in, z.data(), z.size());
-        if (n == 0) throw std::runtime_error(path + ": DEFLATE failed");
-        z.resize(n);
-        z.shrink_to_fit();
-      }
+      const std::size_t b = static_cast<std::size_t>(L.first[g]) + j;
+      for (std::size_t s = 0; s < L.blocks; ++s)
+        compress(planes[j].data() + s * L.bh * L.w, L.rows(s) * L.w, out[b * L.blocks + s]);
     }
   });
+  write_file(path, t, L, out);
+}
 
+void write_float_tiff_blocks(const std::string& path, const FloatTiff& t, int level, const BlockFill& fill,
+                             WorkShare& share) {
+  const Layout L(path, t);
+  std::vector<std::vector<std::uint8_t>> out(L.nb * L.blocks);
+  share.run(L.first.size() - 1, [&](std::size_t g) {
+    Compressor compress(path, level);
+    std::vector<std::vector<float>> planes(static_cast<std::size_t>(L.first[g + 1] - L.first[g]));
+    for (std::size_t s = 0; s < L.blocks; ++s) {
+      Block blk;
+      blk.index = s;
+      blk.x0 = static_cast<int>((s % L.across) * L.bw);
+      blk.y0 = static_cast<int>((s / L.across) * L.bh);
+      blk.width = static_cast<int>(L.bw);
+      blk.height = static_cast<int>(L.rows(s));
+      for (auto& p : planes) p.resize(L.bw * L.rows(s));
+      // A tile with nothing in it is not stored (TileOffsets and TileByteCounts 0: a sparse
+      // file, read as nodata); a strip always is, as GDAL writes strips.
+      if (!fill(L.first[g], blk, planes) && t.tile != 0) continue;
+      for (std::size_t j = 0; j < planes.size(); ++j)
+        compress(planes[j].data(), planes[j].size(), out[(static_cast<std::size_t>(L.first[g]) + j) * L.blocks + s]);
+    }
+  });
+  write_file(path, t, L, out);
+}
+
+namespace {
+void write_file(const std::string& path, const FloatTiff& t, const Layout& L,
+                const std::vector<std::vector<std::uint8_t>>& out) {
+  const std::size_t w = L.w, h = L.h, nb = L.nb;
   std::uint64_t data_bytes = 0;
   for (const auto& z : out) data_bytes += z.size();
   // Past 4 GiB of offsets a classic TIFF cannot point: BigTIFF then (GDAL's BIGTIFF=IF_NEEDED).
@@ -154,7 +223,7 @@ void write_float_tiff(const std::string& path, const FloatTiff& t, int level, co
   std::vector<std::uint64_t> offsets, counts;
   std::uint64_t at = header;
   for (const auto& z : out) {
-    offsets.push_back(at);
+    offsets.push_back(z.empty() ? 0 : at);  // an empty block: not stored
     counts.push_back(z.size());
     at += z.size();
   }
@@ -164,12 +233,18 @@ void write_float_tiff(const std::string& path, const FloatTiff& t, int level, co
   ifd.ints(258, kTiffShort, std::vector<std::uint64_t>(nb, 32));  // BitsPerSample
   ifd.ints(259, kTiffShort, {8});                               // Compression: Deflate (zlib stream)
   ifd.ints(262, kTiffShort, {1});                               // PhotometricInterpretation: BlackIsZero
-  ifd.ints(273, off_type, offsets);                         // StripOffsets
+  if (!t.tile) ifd.ints(273, off_type, offsets);            // StripOffsets
   ifd.ints(277, kTiffShort, {nb});                              // SamplesPerPixel
-  ifd.ints(278, kTiffLong, {rps});                              // RowsPerStrip
-  ifd.ints(279, off_type, counts);                          // StripByteCounts
+  if (!t.tile) ifd.ints(278, kTiffLong, {L.bh});                // RowsPerStrip
+  if (!t.tile) ifd.ints(279, off_type, counts);             // StripByteCounts
   ifd.ints(284, kTiffShort, {2});                               // PlanarConfiguration: separate planes
   ifd.ints(317, kTiffShort, {1});                               // Predictor: none
+  if (t.tile) {
+    ifd.ints(322, kTiffLong, {L.bw});     // TileWidth
+    ifd.ints(323, kTiffLong, {L.bh});     // TileLength
+    ifd.ints(324, off_type, offsets);  // TileOffsets (0: not stored)
+    ifd.ints(325, off_type, counts);   // TileByteCounts (0: not stored)
+  }
   if (nb > 1) ifd.ints(338, kTiffShort, std::vector<std::uint64_t>(nb - 1, 0));  // ExtraSamples: unspecified
   ifd.ints(339, kTiffShort, std::vector<std::uint64_t>(nb, 3));  // SampleFormat: IEEE float
   ifd.doubles(33550, t.pixel_scale, 3);
@@ -205,5 +280,6 @@ void write_float_tiff(const std::string& path, const FloatTiff& t, int level, co
     throw OutputError(path + ": cannot write (" + std::string(std::strerror(e)) + ")");
   }
 }
+}  // namespace
 
 }  // namespace pcdp::io::detail

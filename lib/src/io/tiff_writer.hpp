@@ -20,6 +20,7 @@ namespace pcdp::io::detail {
 struct FloatTiff {
   int width = 0, height = 0, bands = 1;
   int rows_per_strip = 1;
+  int tile = 0;  ///< > 0: tiles of tile x tile pixels (a multiple of 16), written by write_float_tiff_blocks
   double pixel_scale[3] = {1, 1, 0};    ///< ModelPixelScaleTag (33550)
   double tiepoint[6] = {0, 0, 0, 0, 0, 0};  ///< ModelTiepointTag (33922): raster (i, j, k) -> model (x, y, z)
   std::string gdal_metadata;            ///< GDAL_METADATA (42112) XML, empty: none
@@ -40,6 +41,27 @@ using PlaneFill = std::function<void(int first, std::vector<std::vector<float>>&
 /// depend on which thread ran which task. Throws std::runtime_error naming the path.
 void write_float_tiff(const std::string& path, const FloatTiff& t, int level, const PlaneFill& fill,
                       WorkShare& share);
+
+/// A block of the raster: a strip (the raster's width, rows_per_strip rows, the last cut to the
+/// rows left) or a tile (tile x tile pixels, stored whole: the pixels past the raster's right or
+/// bottom edge are padding).
+struct Block {
+  std::size_t index = 0;  ///< row-major among the blocks of a band
+  int x0 = 0, y0 = 0;     ///< its top-left pixel in the raster
+  int width = 0, height = 0;
+};
+/// Fills the planes of bands first .. first + planes.size() - 1 (one group) for `block`: width *
+/// height floats each, its top row first. Returns false when it holds no data (every value
+/// nodata): a tile is then not stored (TileOffsets and TileByteCounts 0, a sparse file that GDAL
+/// and tiff_reader.hpp read as nodata); a strip is stored anyway, as filled.
+using BlockFill = std::function<bool(int first, const Block& block, std::vector<std::vector<float>>& planes)>;
+
+/// As write_float_tiff, but each task fills and compresses one block of its group at a time:
+/// memory is a block of each running group, plus the compressed blocks (none for an empty tile),
+/// whatever the raster's size. Strips (t.tile == 0) are the same bytes write_float_tiff writes for
+/// the same values.
+void write_float_tiff_blocks(const std::string& path, const FloatTiff& t, int level, const BlockFill& fill,
+                             WorkShare& share);
 
 /// The GDAL_METADATA XML for dataset items (name, value) and band descriptions (band 1 first;
 /// empty ones left out), as GDAL writes it: values are escaped twice, because GDAL escapes a

@@ -1,9 +1,13 @@
 #include "pcdp/stages/fuse_elevation.hpp"
 
+#include <algorithm>
 #include <array>
+#include <cstdint>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "pcdp/errors.hpp"
@@ -40,13 +44,31 @@ void for_each_point(const Pass& pass, const FuseElevationParams& p, double fallb
   }
 }
 
-/// The samples of the points of `pass` that go into `grid`, in the pass's order.
+/// Inclusive index bounds of cells (none yet: lo > hi).
+struct CellBounds {
+  std::int64_t lo[2] = {INT64_MAX, INT64_MAX}, hi[2] = {INT64_MIN, INT64_MIN};
+  bool any() const { return lo[0] <= hi[0]; }
+  void add(std::int64_t ix, std::int64_t iy) {
+    lo[0] = std::min(lo[0], ix);
+    lo[1] = std::min(lo[1], iy);
+    hi[0] = std::max(hi[0], ix);
+    hi[1] = std::max(hi[1], iy);
+  }
+  void add(const CellBounds& b) {
+    if (!b.any()) return;
+    add(b.lo[0], b.lo[1]);
+    add(b.hi[0], b.hi[1]);
+  }
+};
+
+/// The samples of the points of `pass` that go into `grid`, in the pass's order, and their cells' bounds.
 std::vector<ElevationSample> samples(const ElevationGrid& grid, const Pass& pass, const FuseElevationParams& p,
-                                     double fallback_var) {
+                                     double fallback_var, CellBounds& bounds) {
   std::vector<ElevationSample> out;
   out.reserve(pass.size());
   for_each_point(pass, p, fallback_var, [&](double x, double y, double z, double var, std::int32_t k) {
     out.push_back(grid.sample(x, y, z, var, k));
+    bounds.add(grid.cell_index(x), grid.cell_index(y));
   });
   return out;
 }
@@ -69,21 +91,30 @@ void fuse_pass(ElevationGrid& grid, const Pass& pass, const FuseElevationParams&
 namespace {
 class FuseElevationStage final : public Stage {
  public:
-  FuseElevationStage(FuseElevationParams p, double fallback_var)
-      : params_(p), fallback_var_(fallback_var), grid_(p.resolution, p.band, p.min_support) {}
+  FuseElevationStage(FuseElevationParams p, double fallback_var, std::string name)
+      : params_(p), fallback_var_(fallback_var), grid_(p.resolution, p.band, p.min_support), name_(std::move(name)) {}
   bool split() const override { return true; }
   // The samples this pass adds, computed on the worker (copied, since later stages may still
   // change the pass); in order, the grid only looks their cells up and sums.
   std::unique_ptr<StageWork> compute(const Pass& pass, StageReport&, WorkShare&) const override {
     auto w = std::make_unique<Work>();
-    w->samples = samples(grid_, pass, params_, fallback_var_);
+    w->samples = samples(grid_, pass, params_, fallback_var_, w->bounds);
+    w->source = pass.source;
     return w;
   }
   void apply(std::unique_ptr<StageWork> work, StageReport&) override {
-    const auto& s = static_cast<Work&>(*work).samples;
-    grid_.add(s.data(), s.size());
+    const Work& w = static_cast<Work&>(*work);
+    check_extent(w.bounds, w.source);
+    grid_.add(w.samples.data(), w.samples.size());
   }
-  void process(Pass& pass, StageReport&) override { fuse_pass(grid_, pass, params_, fallback_var_); }
+  void process(Pass& pass, StageReport&) override {
+    CellBounds b;
+    for_each_point(pass, params_, fallback_var_, [&](double x, double y, double, double, std::int32_t) {
+      b.add(grid_.cell_index(x), grid_.cell_index(y));
+    });
+    check_extent(b, pass.source);
+    fuse_pass(grid_, pass, params_, fallback_var_);
+  }
   // Two products, written at once when the run has threads: elevation.tif (and the report's
   // cell count), then elevation.png. Both only read the grid.
   std::size_t finish_parts() const override { return params_.png ? 2 : 1; }
@@ -94,9 +125,19 @@ class FuseElevationStage final : public Stage {
     for (std::size_t p = 0; p < finish_parts(); ++p) finish_part(p, sink, report, WorkShare::serial());
   }
   void finish_part(std::size_t part, OutputSink& sink, StageReport& report, WorkShare& share) override {
+    try {
+      write_part(part, sink, report, share);
+    } catch (const InputError& e) {  // a grid too large for its product: name the stage
+      throw InputError("stage '" + name_ + "' (fuse_elevation): " + e.what());
+    }
+  }
+
+ private:
+  void write_part(std::size_t part, OutputSink& sink, StageReport& report, WorkShare& share) {
     const auto t0 = std::chrono::steady_clock::now();
     if (part == 1) {
-      io::write_elevation_png(grid_, sink.staged_path("elevation.png"));
+      const int down = io::write_elevation_png(grid_, sink.staged_path("elevation.png"));
+      if (down > 1) report.metrics["png_cells_per_pixel"] = static_cast<double>(down * down);
       report.metrics["write_seconds"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       return;
     }
@@ -105,12 +146,29 @@ class FuseElevationStage final : public Stage {
     report.metrics["cells"] = static_cast<double>(cells);
   }
 
- private:
+  /// The products' size limit (io::check_elevation_extent), checked as each pass arrives: a pose
+  /// jump stops the run at the pass that made it, not after every pass was fused.
+  void check_extent(const CellBounds& pass_bounds, const std::string& source) {
+    CellBounds b = bounds_;
+    b.add(pass_bounds);
+    if (!b.any()) return;
+    try {
+      io::check_elevation_extent(b.lo[0], b.lo[1], b.hi[0], b.hi[1], grid_.resolution());
+    } catch (const InputError& e) {
+      throw InputError("stage '" + name_ + "' (fuse_elevation): with pass " + source + ": " + e.what());
+    }
+    bounds_ = b;
+  }
+
   FuseElevationParams params_;
   double fallback_var_;
   ElevationGrid grid_;
+  std::string name_;
+  CellBounds bounds_;
   struct Work final : StageWork {
     std::vector<ElevationSample> samples;
+    CellBounds bounds;
+    std::string source;
   };
 };
 }  // namespace
@@ -140,7 +198,7 @@ StageInfo fuse_elevation_stage_info() {
               p.has_extent = true;
             }
             const double s = ctx.config->sensor.range_sigma;
-            return std::make_unique<FuseElevationStage>(p, s > 0 ? s * s : 1e-4);
+            return std::make_unique<FuseElevationStage>(p, s > 0 ? s * s : 1e-4, sc.name);
           }};
 }
 

@@ -6,30 +6,57 @@
 // elevations agree to float32 precision. Metadata records resolution, band height and
 // min_support. Written to a temporary name, then renamed. DEFLATE-compressed at `deflate_level`
 // (1 .. 12, libdeflate's levels, as GDAL's ZLEVEL): 1 compresses the 8-pass bench grid 2.3x
-// faster than 6, GDAL's default, for a file 2.4 % larger (docs/performance.md). Strips hold at
-// least 64 KiB of a band.
+// faster than 6, GDAL's default, for a file 2.4 % larger (docs/performance.md). A raster of at
+// most 2^22 cells is written in strips of at least 64 KiB of a band; a larger one in 256 x 256
+// tiles, those without an observed cell not stored (a sparse GeoTIFF: GDAL reads them as nodata),
+// so that the file and its writing cost what the grid observed (docs/fusion.md).
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
+#include <vector>
 
 #include "pcdp/elevation.hpp"
 #include "pcdp/work_share.hpp"
 
 namespace pcdp::io {
 
-/// The strips are compressed as tasks of `share` (one per band), so threads with nothing else
-/// to do help; the file's bytes do not depend on how many did. Returns the number of cells with a
-/// surface (the pixels of band 1 that are not nodata).
+/// Each group of bands is filled and compressed a strip or tile at a time as a task of `share`,
+/// so threads with nothing else to do help; the file's bytes do not depend on how many did.
+/// Returns the number of cells with a surface (the pixels of band 1 that are not nodata). Throws
+/// InputError naming elevation.tif and the size when the raster spans more than 65,536 tiles of
+/// 256 x 256 cells (4,294,967,296 cells), before anything is allocated.
 std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string& path, int deflate_level = 1,
                              WorkShare& share = WorkShare::serial());
+/// InputError naming `product` and the size unless a raster of cells ix0 .. ix1 x iy0 .. iy1
+/// spans at most 65,536 tiles of 256 x 256 cells: what write_elevation_geotiff can write (its
+/// tile directory grows with the raster's area, whatever it holds).
+void check_elevation_extent(std::int64_t ix0, std::int64_t iy0, std::int64_t ix1, std::int64_t iy1, double res,
+                            const std::string& product = "elevation.tif");
+
+/// The grid an elevation.tif's GDAL metadata records: PCDP_RESOLUTION and PCDP_BAND (numbers
+/// > 0) and PCDP_MIN_SUPPORT (a whole number in 1 .. 1000000), each exactly once, each value a
+/// number and nothing else. Throws InputError naming `path` and the item.
+struct GridMetadata {
+  double resolution = 0, band = 0;
+  std::uint32_t min_support = 0;
+};
+GridMetadata parse_grid_metadata(const std::string& gdal_metadata_xml, const std::string& path);
+
+/// InputError unless the files are distinct grids: the same file twice (by any path) or two
+/// files of identical bytes would count the same passes twice in a merge.
+void check_distinct_grids(const std::vector<std::string>& paths);
+
 /// Throws InputError when the file is missing, not a GeoTIFF of pcd_pipeline, or lacks the
 /// merge bands.
 ElevationGrid read_elevation_geotiff(const std::string& path);
 /// Merges the grid in `path` into `grid`: the same as grid.merge(read_elevation_geotiff(path)),
-/// but read a strip of rows at a time into `grid`, so it takes no second grid's memory. Throws
-/// InputError as read_elevation_geotiff does, or when the file's resolution, band or min_support
-/// differ from `grid`'s (checked before any cell is read; the message calls `grid` `grid_name`).
+/// but read a row of a strip or tile at a time into `grid`, so it takes no second grid's memory.
+/// Every cell's state is checked as it is read (docs/fusion.md). Throws InputError as
+/// read_elevation_geotiff does, when a merged count would pass 2^32 - 1, or when the file's
+/// resolution, band or min_support differ from `grid`'s (checked before any cell is read; the
+/// message calls `grid` `grid_name`).
 /// A damaged file found mid-way leaves the cells read so far merged: discard `grid` then.
 void merge_elevation_geotiff(ElevationGrid& grid, const std::string& path,
                              const std::string& grid_name = "the grid");
@@ -37,7 +64,10 @@ void merge_elevation_geotiff(ElevationGrid& grid, const std::string& path,
 /// The picture a person reads: elevation in colour (perceptual ramp) with hillshade, unobserved
 /// cells in light grey, a colour bar with heights and a scale bar. 8-bit RGB PNG through libpng's
 /// simplified writer (no row filters, zlib level 3: a preview). Written to a temporary name, then
-/// renamed; throws std::runtime_error naming the path.
-void write_elevation_png(const ElevationGrid& grid, const std::string& path);
+/// renamed; throws std::runtime_error naming the path. A grid more than 4,096 cells across is
+/// drawn downsampled, at most 2,048 pixels across: each pixel the mean surface of f x f cells, f
+/// the smallest that fits, noted on the picture ("1 px = f x f cells"). Returns f (1: a pixel per
+/// cell).
+int write_elevation_png(const ElevationGrid& grid, const std::string& path);
 
 }  // namespace pcdp::io
