@@ -2,12 +2,14 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <ctime>
 #include <mutex>
 #include <optional>
 #include <nlohmann/json.hpp>
 
 #include "pcdp/errors.hpp"
+#include "pcdp/georef.hpp"
 #include "pcdp/io/atomic_file.hpp"
 #include "pcdp/io/outputs.hpp"
 #include "pcdp/io/poses.hpp"
@@ -65,8 +67,13 @@ Pipeline Pipeline::prepare(PipelineConfig config) {
       throw ConfigError(cfg.stages[i].where + ": stage '" + cfg.stages[i].name +
                         "' (register): 'register' may appear only once, as the first stage");
   p.context_.config = p.config_.get();
-  if (!cfg.poses.empty())
-    p.context_.poses = std::make_shared<const PoseTrack>(io::read_pose_csv(cfg.poses, cfg.rpy_order));
+  if (!cfg.poses.empty()) {
+    // Georeferenced poses: the run works relative to a local map origin (pcdp/georef.hpp).
+    PoseTrack poses = io::read_pose_csv(cfg.poses, cfg.rpy_order);
+    p.context_.map_origin = choose_map_origin(poses);
+    if (!p.context_.map_origin.isZero()) poses = shift_poses(poses, p.context_.map_origin);
+    p.context_.poses = std::make_shared<const PoseTrack>(std::move(poses));
+  }
   for (const auto& sc : cfg.stages) p.stages_.push_back(find_stage(sc.type)->create(sc, p.context_));
   return p;
 }
@@ -123,6 +130,7 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   RunSummary sum;
   sum.output_dir = cfg.output_dir;
   sum.threads = std::max(1u, threads);
+  sum.map_origin = context_.map_origin;
   for (const auto& sc : cfg.stages) {
     StageReport r;
     r.name = sc.name;
@@ -131,8 +139,8 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   }
 
   io::StagedOutputs out(cfg.output_dir);
-  io::ReturnsWriter returns(out.staged_path("returns.pcd"));
-  io::CloudWriter cloud(out.staged_path("cloud.pcd"));
+  io::ReturnsWriter returns(out.staged_path("returns.pcd"), context_.map_origin);
+  io::CloudWriter cloud(out.staged_path("cloud.pcd"), context_.map_origin);
   const std::string report_tmp = out.staged_path("report.json");
 
   const std::size_t np = cfg.scans.size();
@@ -327,6 +335,12 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
                            std::to_string(sum.input_returns));
   for (const auto& r : sum.stages)
     for (const auto& w : r.warnings) sum.warnings.push_back(r.name + ": " + w);
+  // The poses (relative to the map origin) so far from it that the float32 products lose 1 mm.
+  if (const double far = context_.poses ? farthest_pose_offset(*context_.poses, Eigen::Vector3d::Zero()) : 0.0;
+      far > kFloat32MillimetreReach - 1000.0)
+    sum.warnings.push_back(cfg.poses + ": poses reach " + format_value(std::round(far)) +
+                           " m from the map origin; returns.pcd, cloud.pcd and map.bt (float32) keep 1 mm only within " +
+                           format_value(kFloat32MillimetreReach) + " m of it: split the run");
   sum.outputs = out.final_paths();
   sum.seconds = seconds_since(t_run);
   {
@@ -412,6 +426,7 @@ std::string report_json(const PipelineConfig& cfg, const RunSummary& sum) {
   for (const auto& ph : sum.phases)
     j["phases"].push_back({{"phase", ph.name}, {"seconds", ph.seconds}, {"cpu_seconds", ph.cpu_seconds}});
   j["threads"] = sum.threads;
+  if (!sum.map_origin.isZero()) j["map_origin"] = {sum.map_origin.x(), sum.map_origin.y(), sum.map_origin.z()};
   return j.dump(2) + "\n";
 }
 

@@ -28,6 +28,8 @@ std::uint8_t* put(std::uint8_t* dst, T v) {
   return dst + sizeof(T);
 }
 
+// x y z: the pass's coordinates, already relative to the map origin (the pipeline registers
+// relative to it, pcdp/georef.hpp), so float32 keeps 1 mm; the header's VIEWPOINT states the origin.
 std::uint8_t* put_common(std::uint8_t* d, const Pass& p, std::size_t i) {
   d = put(d, static_cast<float>(p.x[i]));
   d = put(d, static_cast<float>(p.y[i]));
@@ -41,7 +43,8 @@ std::uint8_t* put_common(std::uint8_t* d, const Pass& p, std::size_t i) {
 }
 }  // namespace
 
-ReturnsWriter::ReturnsWriter(const std::string& path) : path_(path) {}
+ReturnsWriter::ReturnsWriter(const std::string& path, const Eigen::Vector3d& map_origin)
+    : path_(path), origin_(map_origin) {}
 
 void ReturnsWriter::append(const Pass& pass) {
   if (!writer_) {
@@ -51,6 +54,7 @@ void ReturnsWriter::append(const Pass& pass) {
     auto fields = base_fields(true);
     fields.insert(fields.end(), extra_.begin(), extra_.end());
     writer_ = std::make_unique<PcdWriter>(path_, fields);
+    writer_->set_viewpoint(origin_.x(), origin_.y(), origin_.z());
   } else {
     bool same = pass.extra.size() == extra_.size();
     for (std::size_t k = 0; same && k < extra_.size(); ++k)
@@ -79,7 +83,10 @@ void ReturnsWriter::append(const Pass& pass) {
 }
 
 void ReturnsWriter::close() {
-  if (!writer_) writer_ = std::make_unique<PcdWriter>(path_, base_fields(true));  // a run of empty passes
+  if (!writer_) {  // a run of empty passes
+    writer_ = std::make_unique<PcdWriter>(path_, base_fields(true));
+    writer_->set_viewpoint(origin_.x(), origin_.y(), origin_.z());
+  }
   writer_->close();
 }
 
@@ -91,7 +98,9 @@ std::vector<PcdField> cloud_fields() {
 }
 }  // namespace
 
-CloudWriter::CloudWriter(const std::string& path) : writer_(path, cloud_fields()) {}
+CloudWriter::CloudWriter(const std::string& path, const Eigen::Vector3d& map_origin) : writer_(path, cloud_fields()) {
+  writer_.set_viewpoint(map_origin.x(), map_origin.y(), map_origin.z());
+}
 
 void CloudWriter::append(const Pass& pass) {
   const std::size_t pb = writer_.point_bytes();

@@ -380,7 +380,9 @@ void PcdWriter::close(std::uint64_t height) {
   for (const auto& f : fields_) hs << ' ' << f.type;
   hs << "\nCOUNT";
   for (const auto& f : fields_) hs << ' ' << f.count;
-  hs << "\nWIDTH " << points_ / height << "\nHEIGHT " << height << "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << points_
+  char vp[96];  // the translation as written (%.17g: a round map origin stays "500000")
+  std::snprintf(vp, sizeof vp, "%.17g %.17g %.17g", viewpoint_[0], viewpoint_[1], viewpoint_[2]);
+  hs << "\nWIDTH " << points_ / height << "\nHEIGHT " << height << "\nVIEWPOINT " << vp << " 1 0 0 0\nPOINTS " << points_
      << "\nDATA binary\n";
   const std::string header = hs.str();
 

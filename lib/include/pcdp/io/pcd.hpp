@@ -67,6 +67,13 @@ class PcdWriter {
   std::size_t point_bytes() const { return point_bytes_; }
   /// Appends `n` points from a row-major buffer of n * point_bytes() bytes.
   void append(const std::uint8_t* rows, std::size_t n);
+  /// The VIEWPOINT translation written in the header (the orientation is the identity): the
+  /// pipeline's products state their map origin there (pcdp/georef.hpp). Default 0 0 0.
+  void set_viewpoint(double tx, double ty, double tz) {
+    viewpoint_[0] = tx;
+    viewpoint_[1] = ty;
+    viewpoint_[2] = tz;
+  }
   /// Writes the final file (WIDTH = points, HEIGHT = 1 unless `height` divides it).
   void close(std::uint64_t height = 1);
   std::uint64_t points() const { return points_; }
@@ -77,6 +84,7 @@ class PcdWriter {
   std::vector<PcdField> fields_;
   std::size_t point_bytes_ = 0;
   std::uint64_t points_ = 0;
+  double viewpoint_[3] = {0, 0, 0};
   std::FILE* body_ = nullptr;
 };
 
