@@ -68,8 +68,8 @@ Evaluation evaluate_run(const std::string& truth_dir, const std::string& run_dir
   const auto pass = col(r, "pass", rfile), line = col(r, "line", rfile), beam = col(r, "beam", rfile),
              label = col(r, "label", rfile), range = col(r, "range", rfile);
   auto x = col(r, "x", rfile), y = col(r, "y", rfile), z = col(r, "z", rfile);
-  // A georeferenced run stores x y z relative to its map origin, the VIEWPOINT translation.
-  const double* vp = r.header.viewpoint;
+  // A georeferenced run stores x y z relative to its map origin (the header's "# map_origin").
+  const double* vp = r.header.map_origin;
   if (vp[0] != 0.0 || vp[1] != 0.0 || vp[2] != 0.0)
     for (std::size_t i = 0; i < x.size(); ++i) {
       x[i] += vp[0];

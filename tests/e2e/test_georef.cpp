@@ -99,13 +99,14 @@ TEST(Georef, UtmPosesGiveTheSameRunUpToTheMapOrigin) {
   EXPECT_EQ(ru["warnings"], rn["warnings"]);
 
   // returns.pcd and cloud.pcd: every label the same, every point the same up to the origin
-  // (VIEWPOINT), within 1 mm; before the map origin, float32 kept 0.5 m of the northing.
+  // (the header's "# map_origin"), within 1 mm (float32 of a UTM northing would keep 0.5 m).
   for (const char* file : {"/returns.pcd", "/cloud.pcd"}) {
     SCOPED_TRACE(file);
     const io::PcdTable a = io::read_pcd(dir + "/near" + file), b = io::read_pcd(dir + "/utm" + file);
     ASSERT_EQ(a.header.points, b.header.points);
-    EXPECT_EQ(a.header.viewpoint[0], 0.0);
-    for (int k = 0; k < 3; ++k) EXPECT_EQ(b.header.viewpoint[k], origin[k]);
+    EXPECT_EQ(a.header.map_origin[0], 0.0);
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(b.header.map_origin[k], origin[k]);
+    EXPECT_EQ(b.header.viewpoint[0], 0.0);
     const char* axes[3] = {"x", "y", "z"};
     double worst = 0.0;
     std::size_t points = 0;
@@ -114,7 +115,7 @@ TEST(Georef, UtmPosesGiveTheSameRunUpToTheMapOrigin) {
       for (std::size_t i = 0; i < ca.size(); ++i) {
         ASSERT_EQ(std::isfinite(ca[i]), std::isfinite(cb[i])) << i;
         if (!std::isfinite(ca[i])) continue;
-        worst = std::max(worst, std::fabs((cb[i] + b.header.viewpoint[k]) - (ca[i] + kShift[k])));
+        worst = std::max(worst, std::fabs((cb[i] + b.header.map_origin[k]) - (ca[i] + kShift[k])));
         points += k == 0;
       }
     }

@@ -1,6 +1,7 @@
 // Georeferenced poses (docs/data_contract.md "Coordinates"): the map origin rule, the elevation
 // grid's keys far from 0 (no wrap: a clear error beyond what they hold), the GeoTIFF's absolute
-// georeferencing of a UTM grid, the PCD products' VIEWPOINT, and the streaming API at UTM scale.
+// georeferencing of a UTM grid, the PCD products' "# map_origin" header line, and the streaming
+// API at UTM scale.
 #include <gdal_priv.h>
 #include <gtest/gtest.h>
 
@@ -58,7 +59,7 @@ TEST(Georef, OriginIsZeroNearZeroAndARoundNumberFarAway) {
   // UTM: the bounding box's centre, each axis rounded to a whole kilometre (z 100 m rounds to 0).
   const Eigen::Vector3d o = choose_map_origin(track({{500123.4, 5300490.0, 100.0}, {500300.0, 5300700.0, 104.0}}));
   EXPECT_EQ(o, Eigen::Vector3d(500000.0, 5301000.0, 0.0));
-  // Exactly representable in float32 (PCL reads VIEWPOINT as floats).
+  // Exactly representable in float32.
   for (int a = 0; a < 3; ++a) EXPECT_EQ(static_cast<double>(static_cast<float>(o[a])), o[a]);
   // One axis far is enough; the others round too.
   EXPECT_EQ(choose_map_origin(track({{10.0, 20.0, 5000.0}})), Eigen::Vector3d(0.0, 0.0, 5000.0));
@@ -215,7 +216,7 @@ TEST(Georef, GeoTiffOfAUtmGridIsAbsoluteAndMerges) {
   }
 }
 
-TEST(Georef, PcdProductsStateTheOriginAsTheirViewpoint) {
+TEST(Georef, PcdProductsStateTheOriginInTheirHeader) {
   const std::string dir = test::fresh_dir();
   Pass p = point_pass(12.345678, -3.5, 100.25);
   const Eigen::Vector3d origin(500000.0, 5300000.0, 0.0);
@@ -229,14 +230,16 @@ TEST(Georef, PcdProductsStateTheOriginAsTheirViewpoint) {
   }
   for (const char* f : {"/returns.pcd", "/cloud.pcd"}) {
     const io::PcdTable t = io::read_pcd(dir + f);
-    EXPECT_EQ(t.header.viewpoint[0], 500000.0);
-    EXPECT_EQ(t.header.viewpoint[1], 5300000.0);
-    EXPECT_EQ(t.header.viewpoint[2], 0.0);
-    EXPECT_EQ(t.header.viewpoint[3], 1.0);  // identity orientation
+    EXPECT_EQ(t.header.map_origin[0], 500000.0);
+    EXPECT_EQ(t.header.map_origin[1], 5300000.0);
+    EXPECT_EQ(t.header.map_origin[2], 0.0);
+    for (int k = 0; k < 7; ++k) EXPECT_EQ(t.header.viewpoint[k], k == 3 ? 1.0 : 0.0);  // not the sensor position
     const auto x = test::column(t, "x"), y = test::column(t, "y");
-    EXPECT_NEAR(x[0] + t.header.viewpoint[0], 500012.345678, 1e-6);
-    EXPECT_NEAR(y[0] + t.header.viewpoint[1], 5299996.5, 1e-6);
-    EXPECT_NE(test::read_text(dir + f).find("\nVIEWPOINT 500000 5300000 0 1 0 0 0\n"), std::string::npos);
+    EXPECT_NEAR(x[0] + t.header.map_origin[0], 500012.345678, 1e-6);
+    EXPECT_NEAR(y[0] + t.header.map_origin[1], 5299996.5, 1e-6);
+    EXPECT_EQ(test::read_text(dir + f).find("# .PCD v0.7 - Point Cloud Data file format (written by pcd_pipeline)\n"
+                                            "# map_origin 500000 5300000 0\nVERSION 0.7\n"),
+              0u);
   }
   // Without an origin, the header is as it always was.
   {
@@ -244,7 +247,21 @@ TEST(Georef, PcdProductsStateTheOriginAsTheirViewpoint) {
     r.append(p);
     r.close();
   }
-  EXPECT_NE(test::read_text(dir + "/plain.pcd").find("\nVIEWPOINT 0 0 0 1 0 0 0\n"), std::string::npos);
+  const std::string plain = test::read_text(dir + "/plain.pcd");
+  EXPECT_EQ(plain.find("map_origin"), std::string::npos);
+  EXPECT_EQ(io::read_pcd(dir + "/plain.pcd").header.map_origin[0], 0.0);
+  // Our reader is strict about its own line: three finite numbers.
+  for (const char* bad : {"# map_origin 1 2", "# map_origin 1 2 nan", "# map_origin 1 2 3x"}) {
+    std::string text = plain;
+    text.insert(text.find("VERSION"), std::string(bad) + "\n");
+    test::write_text(dir + "/bad.pcd", text);
+    EXPECT_THROW(io::read_pcd(dir + "/bad.pcd"), InputError) << bad;
+  }
+  // Other comments are still skipped.
+  std::string other = plain;
+  other.insert(other.find("VERSION"), "# map origin is a phrase here\n");
+  test::write_text(dir + "/other.pcd", other);
+  EXPECT_EQ(io::read_pcd(dir + "/other.pcd").header.map_origin[0], 0.0);
 }
 
 TEST(Georef, StreamingAtUtmScaleGivesTheSamePointsInDouble) {

@@ -3,12 +3,12 @@
 // A pose file may give positions anywhere a map frame reaches (UTM: x ~ 5e5 m, y ~ 5e6 m). The
 // pipeline keeps every coordinate in double; its float32 products (returns.pcd, cloud.pcd) and
 // map.bt store coordinates relative to a local map origin, which report.json states
-// (`map_origin`) and the PCD files carry as their VIEWPOINT translation. The GeoTIFF stays
+// (`map_origin`) and the PCD files carry as the header comment "# map_origin X Y Z". The GeoTIFF stays
 // absolute. The origin is chosen from the pose file alone:
 //   - (0, 0, 0) when every pose lies within kNearZero of 0 on every axis (local frames, the
 //     simulator, the sample: their outputs are those of a run without an origin);
 //   - otherwise the centre of the poses' bounding box, each axis rounded to a multiple of
-//     kOriginStep (a round number, exact in float32 and in a PCD header).
+//     kOriginStep (a round number, exact in float32 and as text).
 // The run registers relative to it: the pose positions minus the origin, in double, before any
 // return is placed.
 #pragma once

@@ -29,7 +29,7 @@ std::uint8_t* put(std::uint8_t* dst, T v) {
 }
 
 // x y z: the pass's coordinates, already relative to the map origin (the pipeline registers
-// relative to it, pcdp/georef.hpp), so float32 keeps 1 mm; the header's VIEWPOINT states the origin.
+// relative to it, pcdp/georef.hpp), so float32 keeps 1 mm; the header states the origin.
 std::uint8_t* put_common(std::uint8_t* d, const Pass& p, std::size_t i) {
   d = put(d, static_cast<float>(p.x[i]));
   d = put(d, static_cast<float>(p.y[i]));
@@ -54,7 +54,7 @@ void ReturnsWriter::append(const Pass& pass) {
     auto fields = base_fields(true);
     fields.insert(fields.end(), extra_.begin(), extra_.end());
     writer_ = std::make_unique<PcdWriter>(path_, fields);
-    writer_->set_viewpoint(origin_.x(), origin_.y(), origin_.z());
+    writer_->set_map_origin(origin_.x(), origin_.y(), origin_.z());
   } else {
     bool same = pass.extra.size() == extra_.size();
     for (std::size_t k = 0; same && k < extra_.size(); ++k)
@@ -85,7 +85,7 @@ void ReturnsWriter::append(const Pass& pass) {
 void ReturnsWriter::close() {
   if (!writer_) {  // a run of empty passes
     writer_ = std::make_unique<PcdWriter>(path_, base_fields(true));
-    writer_->set_viewpoint(origin_.x(), origin_.y(), origin_.z());
+    writer_->set_map_origin(origin_.x(), origin_.y(), origin_.z());
   }
   writer_->close();
 }
@@ -99,7 +99,7 @@ std::vector<PcdField> cloud_fields() {
 }  // namespace
 
 CloudWriter::CloudWriter(const std::string& path, const Eigen::Vector3d& map_origin) : writer_(path, cloud_fields()) {
-  writer_.set_viewpoint(map_origin.x(), map_origin.y(), map_origin.z());
+  writer_.set_map_origin(map_origin.x(), map_origin.y(), map_origin.z());
 }
 
 void CloudWriter::append(const Pass& pass) {

@@ -17,8 +17,9 @@ namespace pcdp::io {
 
 /// returns.pcd: x y z range amplitude pass line beam label flags stamp, then the input's extra fields
 /// (carried through). x y z are NaN where there is no point.
-/// `map_origin`: the origin the passes' coordinates are relative to, written as the header's
-/// VIEWPOINT translation (absolute = x y z + VIEWPOINT; PCL reads it as sensor_origin_).
+/// `map_origin`: the origin the passes' coordinates are relative to, written in the header as the
+/// comment "# map_origin X Y Z" when not 0 (map coordinates = x y z + map_origin). Not VIEWPOINT:
+/// PCL's normal estimation and `clean-cloud` take that for the sensor position in the cloud's frame.
 class ReturnsWriter {
  public:
   explicit ReturnsWriter(const std::string& path, const Eigen::Vector3d& map_origin = Eigen::Vector3d::Zero());
