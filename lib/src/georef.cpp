@@ -16,7 +16,7 @@ Eigen::Vector3d choose_map_origin(const PoseTrack& poses) {
   }
   if (lo.minCoeff() >= -kNearZero && hi.maxCoeff() <= kNearZero) return Eigen::Vector3d::Zero();
   Eigen::Vector3d o;
-  for (int a = 0; a < 3; ++a) o[a] = std::round(0.5 * (lo[a] + hi[a]) / kOriginStep) * kOriginStep;
+  for (int a = 0; a < 3; ++a) o[a] = std::round((0.5 * lo[a] + 0.5 * hi[a]) / kOriginStep) * kOriginStep;
   return o + Eigen::Vector3d::Zero();  // (no -0.0)
 }
 

@@ -171,6 +171,12 @@ TEST(Georef, UtmPosesGiveTheSameRunUpToTheMapOrigin) {
   EXPECT_EQ(ju["run_labels"], jn["run_labels"]);
   EXPECT_NEAR(ju["registration_error"]["median"].get<double>(),
               std::sqrt(kShift[0] * kShift[0] + kShift[1] * kShift[1] + kShift[2] * kShift[2]), 1.0);
+
+  // clean-cloud keeps the points relative to the origin and says so in its output's header.
+  const auto cc = run_cli({"clean-cloud", dir + "/utm/cloud.pcd", "-o", dir + "/clean.pcd", "--viewpoint", "0,0,101", "-q"});
+  ASSERT_EQ(cc.exit_code, 0) << cc.err;
+  const io::PcdTable clean = io::read_pcd(dir + "/clean.pcd");
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(clean.header.map_origin[k], origin[k]);
 }
 
 TEST(Georef, MergeOfUtmGridsWithDifferentOriginsIsAbsolute) {

@@ -16,6 +16,7 @@
 #include "pcdp/io/geotiff.hpp"
 #include "pcdp/io/outputs.hpp"
 #include "pcdp/io/pcd.hpp"
+#include "pcdp/io/poses.hpp"
 #include "pcdp/pass.hpp"
 #include "pcdp/stages/fuse_elevation.hpp"
 #include "pcdp/stream.hpp"
@@ -306,4 +307,23 @@ TEST(Georef, StreamingAtUtmScaleGivesTheSamePointsInDouble) {
       ++n;
     }
   EXPECT_EQ(n, 600u);
+}
+
+TEST(Georef, PosePositionsBeyondAnyMapFrameAreRefusedWithTheirLine) {
+  // Positions whose differences would overflow (1e308 and -1e308: NaN points, silently): refused
+  // by the reader, naming the line and column. UTM and geocentric coordinates read as before.
+  const std::string dir = test::fresh_dir();
+  test::write_text(dir + "/utm.csv", "stamp,x,y,z,roll,pitch,yaw\n0,500000.5,5300000.25,-6400000,0,0,0\n");
+  EXPECT_EQ(io::read_pose_csv(dir + "/utm.csv", RpyOrder::kXyz).samples()[0].position.y(), 5300000.25);
+  test::write_text(dir + "/far.csv", "stamp,x,y,z,roll,pitch,yaw\n0,0,0,0,0,0,0\n1,1e308,0,0,0,0,0\n");
+  try {
+    io::read_pose_csv(dir + "/far.csv", RpyOrder::kXyz);
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("far.csv:3: column 'x'"), std::string::npos) << e.what();
+  }
+  test::write_text(dir + "/far_z.csv", "stamp,x,y,z,roll,pitch,yaw\n0,0,0,-2e8,0,0,0\n");
+  EXPECT_THROW(io::read_pose_csv(dir + "/far_z.csv", RpyOrder::kXyz), InputError);
+  // The origin of the widest track allowed is finite: its centre is computed without overflow.
+  EXPECT_TRUE(choose_map_origin(track({{-1e8, 1e8, 0.0}, {1e8, 1e8, 0.0}})).allFinite());
 }
