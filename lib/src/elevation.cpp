@@ -58,14 +58,16 @@ void ElevationGrid::set_key_origin(std::int64_t ix, std::int64_t iy) {
   if (size_ != 0) throw std::logic_error("ElevationGrid::set_key_origin on a grid that holds cells");
   kx0_ = ix;
   ky0_ = iy;
+  set_limits();
 }
 
-bool ElevationGrid::holds_point(double x, double y, double z) const {
-  // Without floor() (a call into libm, per point): two cells short of the limits, so that
-  // rounding at the edge cannot let a cell through that holds() refuses. NaN is refused.
+void ElevationGrid::set_limits() {
   constexpr double kCells = static_cast<double>(kKeyReach) - 2.0, kBands = 2147483648.0 - 2.0;
-  return std::fabs(x / res_ - static_cast<double>(kx0_)) < kCells && std::fabs(y / res_ - static_cast<double>(ky0_)) < kCells &&
-         std::fabs(z / band_) < kBands;
+  lim_[0] = (static_cast<double>(kx0_) - kCells) * res_;
+  lim_[1] = (static_cast<double>(kx0_) + kCells) * res_;
+  lim_[2] = (static_cast<double>(ky0_) - kCells) * res_;
+  lim_[3] = (static_cast<double>(ky0_) + kCells) * res_;
+  lim_[4] = kBands * band_;
 }
 
 std::uint64_t ElevationGrid::checked_key(std::int64_t ix, std::int64_t iy) const {

@@ -64,7 +64,9 @@ struct ElevationSample {
 class ElevationGrid {
  public:
   ElevationGrid(double resolution, double band, std::uint32_t min_support = 2)
-      : res_(resolution), band_(band), min_support_(min_support) {}
+      : res_(resolution), band_(band), min_support_(min_support) {
+    set_limits();
+  }
 
   double resolution() const { return res_; }
   double band() const { return band_; }
@@ -104,8 +106,12 @@ class ElevationGrid {
   bool holds(std::int64_t ix, std::int64_t iy) const {
     return ix - kx0_ >= -kKeyReach && ix - kx0_ < kKeyReach && iy - ky0_ >= -kKeyReach && iy - ky0_ < kKeyReach;
   }
-  /// Whether the grid can hold the cell of map point (x, y) and the height band of z.
-  bool holds_point(double x, double y, double z) const;
+  /// Whether the grid can hold the cell of map point (x, y) and the height band of z (false for
+  /// NaN). Two cells (bands) short of the limits, so that no rounding at the edge lets a point
+  /// through whose cell holds() refuses; a few comparisons, for every point fused.
+  bool holds_point(double x, double y, double z) const {
+    return x > lim_[0] && x < lim_[1] && y > lim_[2] && y < lim_[3] && std::fabs(z) < lim_[4];
+  }
 
   std::int64_t cell_index(double v) const { return static_cast<std::int64_t>(std::floor(v / res_)); }
   double cell_center(std::int64_t i) const { return (static_cast<double>(i) + 0.5) * res_; }
@@ -146,6 +152,8 @@ class ElevationGrid {
   double res_, band_;
   std::uint32_t min_support_;
   std::int64_t kx0_ = 0, ky0_ = 0;  ///< the key origin (set_key_origin)
+  double lim_[5] = {0, 0, 0, 0, 0};  ///< holds_point's bounds: x, y (map metres), |z|
+  void set_limits();
   // The cells in the order they were first touched, in chunks of kChunk (about 40 kB; growth
   // never moves a cell, and a visit of every cell reads memory in order), with a hash from key to
   // place: a lookup probes 8-byte keys. Against one heap node per cell (std::unordered_map): 2x
