@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
+#include <string>
 
 namespace pcdp {
 
@@ -52,9 +54,33 @@ ElevationCell& ElevationGrid::touch(std::uint64_t k) {
   return cell(slot - 1);
 }
 
+void ElevationGrid::set_key_origin(std::int64_t ix, std::int64_t iy) {
+  if (size_ != 0) throw std::logic_error("ElevationGrid::set_key_origin on a grid that holds cells");
+  kx0_ = ix;
+  ky0_ = iy;
+  set_limits();
+}
+
+void ElevationGrid::set_limits() {
+  constexpr double kCells = static_cast<double>(kKeyReach) - 2.0, kBands = 2147483648.0 - 2.0;
+  lim_[0] = (static_cast<double>(kx0_) - kCells) * res_;
+  lim_[1] = (static_cast<double>(kx0_) + kCells) * res_;
+  lim_[2] = (static_cast<double>(ky0_) - kCells) * res_;
+  lim_[3] = (static_cast<double>(ky0_) + kCells) * res_;
+  lim_[4] = kBands * band_;
+}
+
+std::uint64_t ElevationGrid::checked_key(std::int64_t ix, std::int64_t iy) const {
+  if (!holds(ix, iy))
+    throw std::out_of_range("elevation grid: cell (" + std::to_string(ix) + ", " + std::to_string(iy) +
+                            ") is more than 2^30 cells from the grid's key origin (" + std::to_string(kx0_) + ", " +
+                            std::to_string(ky0_) + ")");
+  return key(ix, iy);
+}
+
 ElevationSample ElevationGrid::sample(double x, double y, double z, double var_z, std::int32_t pass) const {
   ElevationSample s;
-  s.key = key(cell_index(x), cell_index(y));
+  s.key = checked_key(cell_index(x), cell_index(y));
   s.band = static_cast<std::int32_t>(std::floor(z / band_));
   s.pass = pass;
   s.w = 1.0 / var_z;
@@ -91,7 +117,11 @@ void ElevationGrid::add(const ElevationSample* s, std::size_t n) {
 void ElevationGrid::merge(const ElevationGrid& other) {
   if (std::fabs(other.res_ - res_) > 1e-12 || std::fabs(other.band_ - band_) > 1e-12)
     throw std::invalid_argument("elevation grids differ in resolution or band and cannot be merged");
-  for (std::size_t i = 0; i < other.size_; ++i) merge_cell_at(other.chunks_[i / kChunk].keys[i % kChunk], other.cell(i));
+  const bool same_keys = other.kx0_ == kx0_ && other.ky0_ == ky0_;
+  for (std::size_t i = 0; i < other.size_; ++i) {
+    const std::uint64_t k = other.chunks_[i / kChunk].keys[i % kChunk];
+    merge_cell_at(same_keys ? k : checked_key(other.unkey_x(k), other.unkey_y(k)), other.cell(i));
+  }
 }
 
 void ElevationGrid::merge_cell_at(std::uint64_t k, const ElevationCell& o) {
@@ -104,7 +134,7 @@ void ElevationGrid::merge_cell_at(std::uint64_t k, const ElevationCell& o) {
   c.zmax = std::max(c.zmax, o.zmax);
 }
 
-void ElevationGrid::set_cell(std::int64_t ix, std::int64_t iy, const ElevationCell& c) { touch(key(ix, iy)) = c; }
+void ElevationGrid::set_cell(std::int64_t ix, std::int64_t iy, const ElevationCell& c) { touch(checked_key(ix, iy)) = c; }
 
 bool ElevationGrid::surface(const ElevationCell& c, double& elevation, double& variance) const {
   double w, wz;
@@ -116,6 +146,7 @@ bool ElevationGrid::surface(const ElevationCell& c, double& elevation, double& v
 }
 
 const ElevationCell* ElevationGrid::find(std::int64_t ix, std::int64_t iy) const {
+  if (!holds(ix, iy)) return nullptr;
   const std::uint32_t* slot = index_.find(key(ix, iy));
   return slot ? &cell(*slot - 1) : nullptr;
 }

@@ -44,7 +44,7 @@ double quantile(std::vector<double> v, double q) {
 
 Evaluation evaluate_run(const std::string& truth_dir, const std::string& run_dir, const NoiseModel& noise) {
   struct Truth {
-    float x, y, z;
+    double x, y, z;
     Label label;
   };
   std::unordered_map<std::uint64_t, Truth> truth;
@@ -60,15 +60,22 @@ Evaluation evaluate_run(const std::string& truth_dir, const std::string& run_dir
     const auto line = col(t, "line", files[k]), beam = col(t, "beam", files[k]), x = col(t, "x", files[k]),
                y = col(t, "y", files[k]), z = col(t, "z", files[k]), label = col(t, "label", files[k]);
     for (std::size_t i = 0; i < line.size(); ++i)
-      truth[key(line[i], beam[i])] = {static_cast<float>(x[i]), static_cast<float>(y[i]),
-                                                              static_cast<float>(z[i]), static_cast<Label>(label[i])};
+      truth[key(line[i], beam[i])] = {x[i], y[i], z[i], static_cast<Label>(label[i])};
   }
 
   const std::string rfile = (fs::path(run_dir) / "returns.pcd").string();
   const io::PcdTable r = io::read_pcd(rfile);
   const auto pass = col(r, "pass", rfile), line = col(r, "line", rfile), beam = col(r, "beam", rfile),
-             label = col(r, "label", rfile), x = col(r, "x", rfile), y = col(r, "y", rfile), z = col(r, "z", rfile),
-             range = col(r, "range", rfile);
+             label = col(r, "label", rfile), range = col(r, "range", rfile);
+  auto x = col(r, "x", rfile), y = col(r, "y", rfile), z = col(r, "z", rfile);
+  // A georeferenced run stores x y z relative to its map origin (the header's "# map_origin").
+  const double* vp = r.header.map_origin;
+  if (vp[0] != 0.0 || vp[1] != 0.0 || vp[2] != 0.0)
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      x[i] += vp[0];
+      y[i] += vp[1];
+      z[i] += vp[2];
+    }
 
   Evaluation e;
   e.returns = r.header.points;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <ctime>
@@ -13,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "pcdp/errors.hpp"
+#include "pcdp/georef.hpp"
 #include "pcdp/io/atomic_file.hpp"
 #include "pcdp/io/outputs.hpp"
 #include "pcdp/io/poses.hpp"
@@ -70,8 +72,13 @@ Pipeline Pipeline::prepare(PipelineConfig config) {
       throw ConfigError(cfg.stages[i].where + ": stage '" + cfg.stages[i].name +
                         "' (register): 'register' may appear only once, as the first stage");
   p.context_.config = p.config_.get();
-  if (!cfg.poses.empty())
-    p.context_.poses = std::make_shared<const PoseTrack>(io::read_pose_csv(cfg.poses, cfg.rpy_order));
+  if (!cfg.poses.empty()) {
+    // Georeferenced poses: the run works relative to a local map origin (pcdp/georef.hpp).
+    PoseTrack poses = io::read_pose_csv(cfg.poses, cfg.rpy_order);
+    p.context_.map_origin = choose_map_origin(poses);
+    if (!p.context_.map_origin.isZero()) poses = shift_poses(poses, p.context_.map_origin);
+    p.context_.poses = std::make_shared<const PoseTrack>(std::move(poses));
+  }
   for (const auto& sc : cfg.stages) p.stages_.push_back(find_stage(sc.type)->create(sc, p.context_));
   // Every product has one writer: a stage list that writes a file twice is refused before the run.
   std::map<std::string, std::string> writer = {{"returns.pcd", "the pipeline"}, {"cloud.pcd", "the pipeline"},
@@ -211,6 +218,7 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   RunSummary sum;
   sum.output_dir = cfg.output_dir;
   sum.threads = std::max(1u, threads);
+  sum.map_origin = context_.map_origin;
   for (const auto& sc : cfg.stages) {
     StageReport r;
     r.name = sc.name;
@@ -228,8 +236,8 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
       for (const auto& f : st->products()) products.push_back(f);
     out.check_replaceable(products);  // before the work, not at the end
   }
-  io::ReturnsWriter returns(out.staged_path("returns.pcd"));
-  io::CloudWriter cloud(out.staged_path("cloud.pcd"));
+  io::ReturnsWriter returns(out.staged_path("returns.pcd"), context_.map_origin);
+  io::CloudWriter cloud(out.staged_path("cloud.pcd"), context_.map_origin);
   const std::string report_tmp = out.staged_path("report.json");
 
   const std::size_t np = cfg.scans.size();
@@ -431,6 +439,12 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   sum.warnings = run_warnings;
   for (const auto& r : sum.stages)
     for (const auto& w : r.warnings) sum.warnings.push_back(r.name + ": " + w);
+  // The poses (relative to the map origin) so far from it that the float32 products lose 1 mm.
+  if (const double far = context_.poses ? farthest_pose_offset(*context_.poses, Eigen::Vector3d::Zero()) : 0.0;
+      far > kFloat32MillimetreReach - 1000.0)
+    sum.warnings.push_back(cfg.poses + ": poses reach " + format_value(std::round(far)) +
+                           " m from the map origin; returns.pcd, cloud.pcd and map.bt (float32) keep 1 mm only within " +
+                           format_value(kFloat32MillimetreReach) + " m of it: split the run");
   sum.outputs = out.final_paths();
   sum.seconds = seconds_since(t_run);
   {
@@ -517,6 +531,7 @@ std::string report_json(const PipelineConfig& cfg, const RunSummary& sum) {
   for (const auto& ph : sum.phases)
     j["phases"].push_back({{"phase", ph.name}, {"seconds", ph.seconds}, {"cpu_seconds", ph.cpu_seconds}});
   j["threads"] = sum.threads;
+  if (!sum.map_origin.isZero()) j["map_origin"] = {sum.map_origin.x(), sum.map_origin.y(), sum.map_origin.z()};
   // Paths are bytes on Linux: a file name that is not UTF-8 (matched by a glob, or given with
   // --output-dir or --set) is written with U+FFFD in place of its invalid bytes, never a failure.
   return j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";

@@ -22,6 +22,7 @@
 
 #include "pcdp/config.hpp"
 #include "pcdp/errors.hpp"
+#include "pcdp/georef.hpp"
 #include "pcdp/io/pcd.hpp"
 #include "pcdp/io/poses.hpp"
 #include "pcdp/octomap_fusion.hpp"
@@ -116,7 +117,9 @@ struct Registered {
 };
 
 Registered register_all(const PipelineConfig& c, const fs::path& returns_pcd) {
-  const PoseTrack poses = io::read_pose_csv(c.poses, c.rpy_order);
+  // Relative to the run's map origin, as the pipeline registers (pcdp/georef.hpp).
+  const PoseTrack read = io::read_pose_csv(c.poses, c.rpy_order);
+  const PoseTrack poses = shift_poses(read, choose_map_origin(read));
   const Eigen::Isometry3d T_V_N = make_transform(c.mount.translation, c.mount.rpy, c.rpy_order);
   const io::PcdTable t = io::read_pcd(returns_pcd.string());
   const auto col = [&](const char* name) {

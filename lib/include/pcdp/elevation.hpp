@@ -64,7 +64,9 @@ struct ElevationSample {
 class ElevationGrid {
  public:
   ElevationGrid(double resolution, double band, std::uint32_t min_support = 2)
-      : res_(resolution), band_(band), min_support_(min_support) {}
+      : res_(resolution), band_(band), min_support_(min_support) {
+    set_limits();
+  }
 
   double resolution() const { return res_; }
   double band() const { return band_; }
@@ -84,12 +86,32 @@ class ElevationGrid {
   /// Merges another grid (same resolution and band; extents may differ): exact and order-free.
   void merge(const ElevationGrid& other);
   /// Merges one cell of another grid of the same resolution and band (what merge() does for each).
-  void merge_cell(std::int64_t ix, std::int64_t iy, const ElevationCell& c) { merge_cell_at(key(ix, iy), c); }
+  void merge_cell(std::int64_t ix, std::int64_t iy, const ElevationCell& c) { merge_cell_at(checked_key(ix, iy), c); }
   /// Sets a cell's state directly (reading a grid back from a GeoTIFF).
   void set_cell(std::int64_t ix, std::int64_t iy, const ElevationCell& c);
 
   /// The surface of a cell: false when it has none (no band with enough support).
   bool surface(const ElevationCell& c, double& elevation, double& variance) const;
+
+  /// Cell indices are absolute (cell (ix, iy) spans [ix, ix + 1) * resolution in map metres); the
+  /// grid holds the cells within kKeyReach of its key origin, cell (0, 0) unless set here. Set it
+  /// before the first cell is added (a georeferenced run puts it at its map origin's cell).
+  void set_key_origin(std::int64_t ix, std::int64_t iy);
+  std::int64_t key_origin_x() const { return kx0_; }
+  std::int64_t key_origin_y() const { return ky0_; }
+  /// Cells on either side of the key origin a grid holds, per axis (2^30: +-107,000 km at 0.1 m,
+  /// +-1,070 km at 1 mm).
+  static constexpr std::int64_t kKeyReach = std::int64_t{1} << 30;
+  /// Whether the grid can hold cell (ix, iy) (adding a cell it cannot hold throws std::out_of_range).
+  bool holds(std::int64_t ix, std::int64_t iy) const {
+    return ix - kx0_ >= -kKeyReach && ix - kx0_ < kKeyReach && iy - ky0_ >= -kKeyReach && iy - ky0_ < kKeyReach;
+  }
+  /// Whether the grid can hold the cell of map point (x, y) and the height band of z (false for
+  /// NaN). Two cells (bands) short of the limits, so that no rounding at the edge lets a point
+  /// through whose cell holds() refuses; a few comparisons, for every point fused.
+  bool holds_point(double x, double y, double z) const {
+    return x > lim_[0] && x < lim_[1] && y > lim_[2] && y < lim_[3] && std::fabs(z) < lim_[4];
+  }
 
   std::int64_t cell_index(double v) const { return static_cast<std::int64_t>(std::floor(v / res_)); }
   double cell_center(std::int64_t i) const { return (static_cast<double>(i) + 0.5) * res_; }
@@ -108,15 +130,19 @@ class ElevationGrid {
   }
 
  private:
-  // Cell indices are kept to 31 bits each (+-2^30 cells: +-107,000 km at 0.1 m, +-1,070 km at
-  // 1 mm) and wrap beyond, so that a key is a 62-bit number (FlatMap's keys must not be ~0).
-  static constexpr std::int64_t kOffset = std::int64_t{1} << 30;
+  // Cell indices relative to the key origin are kept to 31 bits each (+-kKeyReach cells), so that
+  // a key is a 62-bit number (FlatMap's keys must not be ~0); a cell beyond is refused (holds()),
+  // never wrapped onto another.
+  static constexpr std::int64_t kOffset = kKeyReach;
   static constexpr std::uint64_t kMask = (std::uint64_t{1} << 31) - 1;
-  static std::uint64_t key(std::int64_t ix, std::int64_t iy) {
-    return ((static_cast<std::uint64_t>(ix + kOffset) & kMask) << 31) | (static_cast<std::uint64_t>(iy + kOffset) & kMask);
+  std::uint64_t key(std::int64_t ix, std::int64_t iy) const {
+    return ((static_cast<std::uint64_t>(ix - kx0_ + kOffset) & kMask) << 31) |
+           (static_cast<std::uint64_t>(iy - ky0_ + kOffset) & kMask);
   }
-  static std::int64_t unkey_x(std::uint64_t k) { return static_cast<std::int64_t>(k >> 31) - kOffset; }
-  static std::int64_t unkey_y(std::uint64_t k) { return static_cast<std::int64_t>(k & kMask) - kOffset; }
+  /// key(), after checking that the grid holds the cell (std::out_of_range otherwise).
+  std::uint64_t checked_key(std::int64_t ix, std::int64_t iy) const;
+  std::int64_t unkey_x(std::uint64_t k) const { return static_cast<std::int64_t>(k >> 31) - kOffset + kx0_; }
+  std::int64_t unkey_y(std::uint64_t k) const { return static_cast<std::int64_t>(k & kMask) - kOffset + ky0_; }
   /// The cell of `k`, appended empty if absent.
   ElevationCell& touch(std::uint64_t k);
   void merge_cell_at(std::uint64_t k, const ElevationCell& c);
@@ -125,6 +151,9 @@ class ElevationGrid {
 
   double res_, band_;
   std::uint32_t min_support_;
+  std::int64_t kx0_ = 0, ky0_ = 0;  ///< the key origin (set_key_origin)
+  double lim_[5] = {0, 0, 0, 0, 0};  ///< holds_point's bounds: x, y (map metres), |z|
+  void set_limits();
   // The cells in the order they were first touched, in chunks of kChunk (about 40 kB; growth
   // never moves a cell, and a visit of every cell reads memory in order), with a hash from key to
   // place: a lookup probes 8-byte keys. Against one heap node per cell (std::unordered_map): 2x

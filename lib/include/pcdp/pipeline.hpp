@@ -40,6 +40,8 @@ struct RunSummary {
   std::vector<Phase> phases;
   std::string output_dir;
   std::vector<std::string> outputs;  ///< final paths written
+  /// The map origin the products are relative to (pcdp/georef.hpp); zero: absolute.
+  Eigen::Vector3d map_origin = Eigen::Vector3d::Zero();
 };
 
 /// Progress events: one per pass and stage ("read", stage names, "write").

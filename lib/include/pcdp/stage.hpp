@@ -108,6 +108,10 @@ struct RunContext {
   const PipelineConfig* config = nullptr;
   /// T_M_V(t); empty when the pipeline has no pose file (T_M_V = identity).
   std::shared_ptr<const PoseTrack> poses;
+  /// The map origin (pcdp/georef.hpp): `poses` and so every registered coordinate are relative to
+  /// it; products that state map metres (the GeoTIFF) add it back. Zero unless the poses are
+  /// georeferenced.
+  Eigen::Vector3d map_origin = Eigen::Vector3d::Zero();
 };
 
 struct StageInfo {

@@ -14,6 +14,10 @@
 // output is identical to the batch run of the same pass (tests/unit/test_stream.cpp checks it).
 // The fusion stages and check_consistency need whole passes; a streaming pipeline must not list
 // them (feed the finished lines to your own map instead).
+//
+// Coordinates: the finished lines hold doubles in absolute map coordinates (no map origin, unlike
+// a batch run's products: pcdp/georef.hpp). With georeferenced poses, subtract an origin of your
+// choice before converting them to float.
 #pragma once
 
 #include <deque>

@@ -90,7 +90,9 @@ std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string
   const int row_bytes = nx * static_cast<int>(sizeof(float));
   t.rows_per_strip = std::min(ny, std::max(1, (kStripBytes + row_bytes - 1) / row_bytes));
   const double res = grid.resolution();
-  // North-up: raster (0, 0) is the north-west corner of cell (ix0, iy1).
+  // North-up: raster (0, 0) is the north-west corner of cell (ix0, iy1). The grid's cell indices
+  // are absolute (a run's grid adds its map origin), so the tie point is in true map metres,
+  // computed in double: a UTM grid is georeferenced to the nanometre.
   t.pixel_scale[0] = t.pixel_scale[1] = res;
   t.tiepoint[3] = static_cast<double>(ix0) * res;
   t.tiepoint[4] = static_cast<double>(iy1 + 1) * res;
@@ -267,6 +269,9 @@ class GridFile {
   double resolution() const { return res_; }
   double band() const { return band_; }
   std::uint32_t min_support() const { return support_; }
+  /// The absolute cell indices of the raster's north-west cell.
+  std::int64_t corner_x() const { return ix0_; }
+  std::int64_t corner_y() const { return iy1_; }
 
   /// f(ix, iy, cell) for every cell that holds points, a block (strip or tile) at a time. Every
   /// cell's state is checked first (docs/fusion.md, "merge"): an InputError names the file, the
@@ -350,6 +355,9 @@ class GridFile {
 ElevationGrid read_elevation_geotiff(const std::string& path) {
   GridFile file(path);
   ElevationGrid grid(file.resolution(), file.band(), file.min_support());
+  // Keys relative to the raster's corner: a grid far from 0 (UTM at a fine resolution) is held
+  // without wrapping its keys, and its cells keep their absolute indices.
+  grid.set_key_origin(file.corner_x(), file.corner_y());
   file.for_each_cell([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) { grid.set_cell(ix, iy, c); });
   return grid;
 }
@@ -364,6 +372,12 @@ void merge_elevation_geotiff(ElevationGrid& grid, const std::string& path, const
                      format_value(grid.resolution()) + " m, " + format_value(grid.band()) + " m, " +
                      std::to_string(grid.min_support()) + "); grids merge only on the same grid");
   file.for_each_cell([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
+    if (!grid.holds(ix, iy))
+      throw InputError(path + ": its cell at (" + format_value(static_cast<double>(ix) * grid.resolution()) + ", " +
+                       format_value(static_cast<double>(iy) * grid.resolution()) + ") m lies more than 2^30 cells from " +
+                       grid_name + "'s (" + format_value(static_cast<double>(grid.key_origin_x()) * grid.resolution()) +
+                       ", " + format_value(static_cast<double>(grid.key_origin_y()) * grid.resolution()) +
+                       ") m: grids this far apart do not merge into one raster");
     // Counts are 32-bit: a sum past that would wrap (the passes and bands' counts are at most it).
     if (const ElevationCell* have = grid.find(ix, iy); have && std::uint64_t{have->count} + c.count > 4294967295u)
       throw InputError(path + ": the cell at grid index (" + std::to_string(ix) + ", " + std::to_string(iy) +

@@ -49,6 +49,8 @@ std::vector<PcdField> output_extra_fields(const std::vector<PcdField>& extra) {
   return out;
 }
 
+// x y z: the pass's coordinates, already relative to the map origin (the pipeline registers
+// relative to it, pcdp/georef.hpp), so float32 keeps 1 mm; the header states the origin.
 std::uint8_t* put_common(std::uint8_t* d, const Pass& p, std::size_t i) {
   d = put(d, static_cast<float>(p.x[i]));
   d = put(d, static_cast<float>(p.y[i]));
@@ -62,7 +64,8 @@ std::uint8_t* put_common(std::uint8_t* d, const Pass& p, std::size_t i) {
 }
 }  // namespace
 
-ReturnsWriter::ReturnsWriter(const std::string& path) : path_(path) {}
+ReturnsWriter::ReturnsWriter(const std::string& path, const Eigen::Vector3d& map_origin)
+    : path_(path), origin_(map_origin) {}
 
 void ReturnsWriter::append(const Pass& pass) {
   if (!writer_) {
@@ -73,6 +76,7 @@ void ReturnsWriter::append(const Pass& pass) {
     const auto renamed = output_extra_fields(extra_);
     fields.insert(fields.end(), renamed.begin(), renamed.end());
     writer_ = std::make_unique<PcdWriter>(path_, fields);
+    writer_->set_map_origin(origin_.x(), origin_.y(), origin_.z());
   } else {
     bool same = pass.extra.size() == extra_.size();
     for (std::size_t k = 0; same && k < extra_.size(); ++k)
@@ -101,7 +105,10 @@ void ReturnsWriter::append(const Pass& pass) {
 }
 
 void ReturnsWriter::close() {
-  if (!writer_) writer_ = std::make_unique<PcdWriter>(path_, base_fields(true));  // a run of empty passes
+  if (!writer_) {  // a run of empty passes
+    writer_ = std::make_unique<PcdWriter>(path_, base_fields(true));
+    writer_->set_map_origin(origin_.x(), origin_.y(), origin_.z());
+  }
   writer_->close();
 }
 
@@ -113,7 +120,9 @@ std::vector<PcdField> cloud_fields() {
 }
 }  // namespace
 
-CloudWriter::CloudWriter(const std::string& path) : writer_(path, cloud_fields()) {}
+CloudWriter::CloudWriter(const std::string& path, const Eigen::Vector3d& map_origin) : writer_(path, cloud_fields()) {
+  writer_.set_map_origin(map_origin.x(), map_origin.y(), map_origin.z());
+}
 
 void CloudWriter::append(const Pass& pass) {
   const std::size_t pb = writer_.point_bytes();

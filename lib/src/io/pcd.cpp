@@ -183,6 +183,19 @@ PcdHeader read_pcd_header(const std::string& path) {
       fail(path, "header line " + std::to_string(lineno) + ": holds a NUL byte (binary data in the header, or not a PCD file)");
     if (!line.empty() && line.back() == '\r') line.pop_back();
     const auto tok = split_ws(line);
+    if (!tok.empty() && tok[0] == "#" && tok.size() > 1 && tok[1] == "map_origin") {
+      // pcd_pipeline's products relative to a map origin state it in this comment (other readers,
+      // PCL's among them, skip comment lines): "# map_origin X Y Z".
+      const std::string where = "header line " + std::to_string(lineno) + " (# map_origin)";
+      if (tok.size() != 5) fail(path, where + ": expected 3 numbers (x y z of the map origin, m)");
+      for (int i = 0; i < 3; ++i) {
+        char* end = nullptr;
+        h.map_origin[i] = std::strtod(tok[static_cast<std::size_t>(i) + 2].c_str(), &end);
+        if (*end != '\0' || !std::isfinite(h.map_origin[i]))
+          fail(path, where + ": '" + tok[static_cast<std::size_t>(i) + 2] + "' is not a finite number");
+      }
+      continue;
+    }
     if (tok.empty() || tok[0][0] == '#') continue;
     const std::string& key = tok[0];
     const std::string where = "header line " + std::to_string(lineno) + " (" + key + ")";
@@ -473,7 +486,13 @@ void PcdWriter::close(std::uint64_t height) {
   body_ = nullptr;
   if (height == 0 || points_ % height != 0) height = 1;
   std::ostringstream hs;
-  hs << "# .PCD v0.7 - Point Cloud Data file format (written by pcd_pipeline)\nVERSION 0.7\nFIELDS";
+  hs << "# .PCD v0.7 - Point Cloud Data file format (written by pcd_pipeline)\n";
+  if (map_origin_[0] != 0.0 || map_origin_[1] != 0.0 || map_origin_[2] != 0.0) {
+    char o[112];  // %.17g: a round origin stays "500000"
+    std::snprintf(o, sizeof o, "# map_origin %.17g %.17g %.17g\n", map_origin_[0], map_origin_[1], map_origin_[2]);
+    hs << o;
+  }
+  hs << "VERSION 0.7\nFIELDS";
   for (const auto& f : fields_) hs << ' ' << f.name;
   hs << "\nSIZE";
   for (const auto& f : fields_) hs << ' ' << f.size;

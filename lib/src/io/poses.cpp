@@ -14,6 +14,7 @@
 namespace pcdp::io {
 
 namespace {
+constexpr double kMaxPoseCoordinate = 1e8;  // m
 const char* const kColumns[] = {"stamp", "x", "y", "z", "roll", "pitch", "yaw"};
 
 // Cells with the blanks around them trimmed; blanks inside a cell stay (and make it no number).
@@ -68,6 +69,10 @@ PoseTrack read_pose_csv_unguarded(const std::string& path, RpyOrder order) {
         fail(lineno, "column '" + std::string(kColumns[c]) + "': '" + cells[c] + "' is not a number");
       if (!std::isfinite(v[c]))
         fail(lineno, "column '" + std::string(kColumns[c]) + "': '" + cells[c] + "' is not finite (NaN/inf are not allowed in poses)");
+      // No map frame reaches further (UTM northings stay below 1e7 m, geocentric coordinates
+      // below 6.4e6 m); beyond, differences of positions overflow into NaN points.
+      if (c >= 1 && c <= 3 && !(std::fabs(v[c]) <= kMaxPoseCoordinate))
+        fail(lineno, "column '" + std::string(kColumns[c]) + "': " + cells[c] + " m is beyond +-1e8 m (no map frame reaches that far)");
     }
     if (!samples.empty() && !(v[0] > samples.back().stamp))
       fail(lineno, "stamp " + cells[0] + " is not after the previous stamp (" + std::to_string(samples.back().stamp) +

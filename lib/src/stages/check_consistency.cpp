@@ -9,6 +9,8 @@
 #include <stdexcept>
 
 #include "../ordered_parallel.hpp"
+#include "pcdp/errors.hpp"
+#include "pcdp/georef.hpp"
 #include "pcdp/pass.hpp"
 
 namespace pcdp {
@@ -816,12 +818,17 @@ std::size_t ConsistencyEvidence::label_by_lookup(Pass& pass) const {
 namespace {
 class CheckConsistencyStage final : public Stage {
  public:
-  explicit CheckConsistencyStage(ConsistencyParams p) : evidence_(p) {}
+  CheckConsistencyStage(ConsistencyParams p, std::string name, Eigen::Vector3d origin)
+      : evidence_(p), p_(p), name_(std::move(name)), origin_(origin) {}
   bool wants_prepass() const override { return true; }
   bool concurrent() const override { return true; }  // label() reads the evidence, complete after the prepass
-  void prepass(const Pass& pass) override { evidence_.add_pass(pass); }
+  void prepass(const Pass& pass) override {
+    check_key_range(pass);
+    evidence_.add_pass(pass);
+  }
   bool prepass_split() const override { return true; }
   std::unique_ptr<StageWork> prepass_compute(const Pass& pass) const override {
+    check_key_range(pass);
     auto w = std::make_unique<Work>();
     w->rays = evidence_.collect(pass);
     return w;
@@ -840,7 +847,33 @@ class CheckConsistencyStage final : public Stage {
   }
 
  private:
+  // The voxel keys hold 21 bits per axis and wrap beyond: two voxels 2^21 apart would share
+  // evidence. Every voxel the run touches lies within 2^20 voxels of the map origin (less the
+  // neighbourhood a hit covers, and a voxel for rounding) or the run is refused: an InputError,
+  // never a wrap.
+  void check_key_range(const Pass& pass) const {
+    const double lim = (static_cast<double>(kCoordOffset) - 2.0 - p_.hit_radius) * p_.resolution;
+    const auto in = [lim](double x, double y, double z) { return std::fabs(x) < lim && std::fabs(y) < lim && std::fabs(z) < lim; };
+    for (std::size_t i = 0; i < pass.size(); ++i) {
+      if (!pass.is_kept(i) || !std::isfinite(pass.x[i])) continue;
+      const bool e_in = in(pass.x[i], pass.y[i], pass.z[i]);
+      const bool o_in = !std::isfinite(pass.ox[i]) || in(pass.ox[i], pass.oy[i], pass.oz[i]);
+      if (e_in && o_in) continue;
+      const double x = !e_in ? pass.x[i] : pass.ox[i], y = !e_in ? pass.y[i] : pass.oy[i], z = !e_in ? pass.z[i] : pass.oz[i];
+      throw InputError(pass.source + ": line " + std::to_string(pass.line[i]) + " beam " + std::to_string(pass.beam[i]) +
+                       ": stage '" + name_ + "' (check_consistency): the " + (!e_in ? "point " : "sensor origin ") +
+                       format_point(x + origin_.x(), y + origin_.y(), z + origin_.z()) +
+                       " (map metres) lies beyond the stage's voxel keys, " + format_value(lim) +
+                       " m on each axis around the map origin " + format_point(origin_.x(), origin_.y(), origin_.z()) +
+                       " (2^20 voxels of " + format_value(p_.resolution) +
+                       " m); check the pose file's coordinates, use a coarser 'resolution' or split the run");
+    }
+  }
+
   ConsistencyEvidence evidence_;
+  ConsistencyParams p_;
+  std::string name_;
+  Eigen::Vector3d origin_;
   struct Work final : StageWork {
     ConsistencyEvidence::PassRays rays;
   };
@@ -850,7 +883,7 @@ class CheckConsistencyStage final : public Stage {
 StageInfo check_consistency_stage_info() {
   return {"check_consistency",
           "label inconsistent the returns other passes saw free space through (needs several passes)",
-          check_consistency_schema(), [](const StageConfig& sc, const RunContext&) -> std::unique_ptr<Stage> {
+          check_consistency_schema(), [](const StageConfig& sc, const RunContext& ctx) -> std::unique_ptr<Stage> {
             const OptionValues& o = sc.options;
             ConsistencyParams p;
             p.resolution = o.get_double("resolution");
@@ -858,7 +891,7 @@ StageInfo check_consistency_stage_info() {
             p.min_passes = static_cast<int>(o.get_int("min_passes"));
             p.max_range = o.get_double("max_range");
             p.hit_radius = static_cast<int>(o.get_int("hit_radius"));
-            return std::make_unique<CheckConsistencyStage>(p);
+            return std::make_unique<CheckConsistencyStage>(p, sc.name, ctx.map_origin);
           }};
 }
 

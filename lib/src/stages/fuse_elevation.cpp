@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "pcdp/errors.hpp"
+#include "pcdp/georef.hpp"
 #include "pcdp/io/geotiff.hpp"
 #include "pcdp/pass.hpp"
 
@@ -31,16 +32,34 @@ const OptionSchema& fuse_elevation_schema() {
 
 namespace {
 /// The points of a pass that go into the grid, with their vertical variance.
+/// Points in map metres: the pass's coordinates plus the map origin (none added when it is 0, so
+/// a run without an origin fuses the very same doubles). A point the grid cannot hold is an
+/// InputError: fusing it would wrap its cell key onto another cell.
 template <class F>
-void for_each_point(const Pass& pass, const FuseElevationParams& p, double fallback_var, F&& f) {
+void for_each_point(const ElevationGrid& grid, const Pass& pass, const FuseElevationParams& p, double fallback_var, F&& f) {
   const bool cov = pass.cov.size() == 6 * pass.size();
+  const bool shift = p.origin_x != 0.0 || p.origin_y != 0.0 || p.origin_z != 0.0;
   for (std::size_t i = 0; i < pass.size(); ++i) {
     if (!pass.is_kept(i) || !std::isfinite(pass.z[i])) continue;
-    if (p.has_extent && (pass.x[i] < p.xmin || pass.x[i] >= p.xmax || pass.y[i] < p.ymin || pass.y[i] >= p.ymax)) continue;
-    if (pass.z[i] > p.z_max) continue;
+    double x = pass.x[i], y = pass.y[i], z = pass.z[i];
+    if (shift) {
+      x += p.origin_x;
+      y += p.origin_y;
+      z += p.origin_z;
+    }
+    if (p.has_extent && (x < p.xmin || x >= p.xmax || y < p.ymin || y >= p.ymax)) continue;
+    if (z > p.z_max) continue;
+    if (!grid.holds_point(x, y, z))
+      throw InputError(pass.source + ": line " + std::to_string(pass.line[i]) + " beam " + std::to_string(pass.beam[i]) +
+                       ": stage " + p.stage + ": the point " + format_point(x, y, z) +
+                       " (map metres) is beyond what the elevation grid holds: cells within 2^30 of its origin's (" +
+                       format_value(static_cast<double>(ElevationGrid::kKeyReach) * grid.resolution()) + " m at resolution " +
+                       format_value(grid.resolution()) + " m), height bands within 2^31 of 0 (" +
+                       format_value(2147483648.0 * grid.band()) + " m at band " + format_value(grid.band()) +
+                       " m); check the pose file's coordinates, or use a coarser 'resolution' / 'band'");
     double var = cov ? static_cast<double>(pass.cov[6 * i + 5]) : fallback_var;
     if (!(var > 1e-12)) var = fallback_var;
-    f(pass.x[i], pass.y[i], pass.z[i], var, static_cast<std::int32_t>(pass.index));
+    f(x, y, z, var, static_cast<std::int32_t>(pass.index));
   }
 }
 
@@ -66,7 +85,7 @@ std::vector<ElevationSample> samples(const ElevationGrid& grid, const Pass& pass
                                      double fallback_var, CellBounds& bounds) {
   std::vector<ElevationSample> out;
   out.reserve(pass.size());
-  for_each_point(pass, p, fallback_var, [&](double x, double y, double z, double var, std::int32_t k) {
+  for_each_point(grid, pass, p, fallback_var, [&](double x, double y, double z, double var, std::int32_t k) {
     out.push_back(grid.sample(x, y, z, var, k));
     bounds.add(grid.cell_index(x), grid.cell_index(y));
   });
@@ -74,11 +93,17 @@ std::vector<ElevationSample> samples(const ElevationGrid& grid, const Pass& pass
 }
 }  // namespace
 
+ElevationGrid make_elevation_grid(const FuseElevationParams& p) {
+  ElevationGrid g(p.resolution, p.band, p.min_support);
+  if (p.origin_x != 0.0 || p.origin_y != 0.0) g.set_key_origin(g.cell_index(p.origin_x), g.cell_index(p.origin_y));
+  return g;
+}
+
 void fuse_pass(ElevationGrid& grid, const Pass& pass, const FuseElevationParams& p, double fallback_var) {
   // In slices through a small buffer: no array the size of the pass to allocate (and fault in).
   std::array<ElevationSample, 256> buf;
   std::size_t n = 0;
-  for_each_point(pass, p, fallback_var, [&](double x, double y, double z, double var, std::int32_t k) {
+  for_each_point(grid, pass, p, fallback_var, [&](double x, double y, double z, double var, std::int32_t k) {
     buf[n++] = grid.sample(x, y, z, var, k);
     if (n == buf.size()) {
       grid.add(buf.data(), n);
@@ -92,7 +117,7 @@ namespace {
 class FuseElevationStage final : public Stage {
  public:
   FuseElevationStage(FuseElevationParams p, double fallback_var, std::string name)
-      : params_(p), fallback_var_(fallback_var), grid_(p.resolution, p.band, p.min_support), name_(std::move(name)) {}
+      : params_(p), fallback_var_(fallback_var), grid_(make_elevation_grid(p)), name_(std::move(name)) {}
   bool split() const override { return true; }
   // The samples this pass adds, computed on the worker (copied, since later stages may still
   // change the pass); in order, the grid only looks their cells up and sums.
@@ -197,6 +222,10 @@ StageInfo fuse_elevation_stage_info() {
                                   (err ? " (it " + *err + ")" : ""));
               p.has_extent = true;
             }
+            p.origin_x = ctx.map_origin.x();
+            p.origin_y = ctx.map_origin.y();
+            p.origin_z = ctx.map_origin.z();
+            p.stage = "'" + sc.name + "' (fuse_elevation)";
             const double s = ctx.config->sensor.range_sigma;
             return std::make_unique<FuseElevationStage>(p, s > 0 ? s * s : 1e-4, sc.name);
           }};

@@ -2,10 +2,12 @@
 
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 
 #include "pcdp/errors.hpp"
+#include "pcdp/georef.hpp"
 #include "pcdp/octomap_fusion.hpp"
 #include "pcdp/pass.hpp"
 
@@ -28,10 +30,11 @@ const OptionSchema& fuse_octomap_schema() {
 namespace {
 class FuseOctoMapStage final : public Stage {
  public:
-  FuseOctoMapStage(OctoMapParams p, bool write_ot)
-      : params_(p), write_ot_(write_ot), caster_(make_octree(p)), cells_(p) {}
+  FuseOctoMapStage(OctoMapParams p, bool write_ot, std::string name, Eigen::Vector3d origin)
+      : params_(p), write_ot_(write_ot), name_(std::move(name)), origin_(origin), caster_(make_octree(p)), cells_(p) {}
   bool split() const override { return true; }
   std::unique_ptr<StageWork> compute(const Pass& pass, StageReport& report, WorkShare& share) const override {
+    check_key_range(pass);
     auto w = std::make_unique<Work>();
     w->rays = cast_pass(caster_, pass, params_, share);
     report.metrics["rays"] += static_cast<double>(w->rays.rays);
@@ -68,8 +71,33 @@ class FuseOctoMapStage final : public Stage {
   }
 
  private:
+  // OctoMap's keys hold +-32768 leaves around 0 of the map (the run's map origin): a ray with an
+  // end beyond would be dropped without a word (an empty map.bt for UTM poses before the map
+  // origin). Every ray the stage casts must have both ends within 32767 leaves of the origin (one
+  // leaf short of the keys' limit, so that no rounding at the edge decides): otherwise an InputError.
+  void check_key_range(const Pass& pass) const {
+    const double lim = 32767.0 * params_.resolution;
+    const auto in = [lim](double x, double y, double z) { return std::fabs(x) < lim && std::fabs(y) < lim && std::fabs(z) < lim; };
+    for (std::size_t i = 0; i < pass.size(); ++i) {
+      if (!pass.is_kept(i) || !std::isfinite(pass.x[i]) || !std::isfinite(pass.ox[i])) continue;
+      const bool o_in = in(pass.ox[i], pass.oy[i], pass.oz[i]), e_in = in(pass.x[i], pass.y[i], pass.z[i]);
+      if (o_in && e_in) continue;
+      const bool end = o_in;  // the end is out (or both)
+      const double x = end ? pass.x[i] : pass.ox[i], y = end ? pass.y[i] : pass.oy[i], z = end ? pass.z[i] : pass.oz[i];
+      throw InputError(pass.source + ": line " + std::to_string(pass.line[i]) + " beam " + std::to_string(pass.beam[i]) +
+                       ": stage '" + name_ + "' (fuse_octomap): the ray's " + (end ? "end point " : "sensor origin ") +
+                       format_point(x + origin_.x(), y + origin_.y(), z + origin_.z()) +
+                       " (map metres) lies outside the OctoMap's key range, 32767 leaves of " +
+                       format_value(params_.resolution) + " m (" + format_value(lim) +
+                       " m) on each axis around the map origin " + format_point(origin_.x(), origin_.y(), origin_.z()) +
+                       "; check the pose file's coordinates, use a coarser 'resolution' or split the run");
+    }
+  }
+
   OctoMapParams params_;
   bool write_ot_;
+  std::string name_;
+  Eigen::Vector3d origin_;
   // An empty tree of the same resolution: only its key geometry is used, by cast_pass on any
   // thread, while the accumulator is updated in pass order.
   octomap::OcTree caster_;
@@ -82,7 +110,7 @@ class FuseOctoMapStage final : public Stage {
 
 StageInfo fuse_octomap_stage_info() {
   return {"fuse_octomap", "every pass into one OctoMap, a sensor origin per return, batched per pass (map.bt)",
-          fuse_octomap_schema(), [](const StageConfig& sc, const RunContext&) -> std::unique_ptr<Stage> {
+          fuse_octomap_schema(), [](const StageConfig& sc, const RunContext& ctx) -> std::unique_ptr<Stage> {
             const OptionValues& o = sc.options;
             OctoMapParams p;
             p.resolution = o.get_double("resolution");
@@ -96,7 +124,7 @@ StageInfo fuse_octomap_stage_info() {
               throw ConfigError(sc.where + ": stage '" + sc.name + "' (fuse_octomap): option 'clamping_min' = " +
                                 format_value(p.clamping_min) + " must be less than 'clamping_max' = " +
                                 format_value(p.clamping_max));
-            return std::make_unique<FuseOctoMapStage>(p, o.get_bool("write_ot"));
+            return std::make_unique<FuseOctoMapStage>(p, o.get_bool("write_ot"), sc.name, ctx.map_origin);
           }};
 }
 

@@ -2,6 +2,7 @@
 // label) and cloud.pcd (the kept points). Fields are those of DESIGN.md "Outputs".
 #pragma once
 
+#include <Eigen/Core>
 #include <memory>
 #include <string>
 #include <vector>
@@ -16,9 +17,12 @@ namespace pcdp::io {
 
 /// returns.pcd: x y z range amplitude pass line beam label flags stamp, then the input's extra fields
 /// (carried through). x y z are NaN where there is no point.
+/// `map_origin`: the origin the passes' coordinates are relative to, written in the header as the
+/// comment "# map_origin X Y Z" when not 0 (map coordinates = x y z + map_origin). Not VIEWPOINT:
+/// PCL's normal estimation and `clean-cloud` take that for the sensor position in the cloud's frame.
 class ReturnsWriter {
  public:
-  explicit ReturnsWriter(const std::string& path);
+  explicit ReturnsWriter(const std::string& path, const Eigen::Vector3d& map_origin = Eigen::Vector3d::Zero());
   void append(const Pass& pass);
   void close();
   std::uint64_t points() const { return writer_ ? writer_->points() : 0; }
@@ -28,6 +32,7 @@ class ReturnsWriter {
   std::unique_ptr<PcdWriter> writer_;
   std::vector<PcdField> extra_;  ///< fixed by the first pass
   std::string extra_source_;
+  Eigen::Vector3d origin_;
 };
 
 /// cloud.pcd: the kept points, x y z range amplitude pass line beam stamp, their covariance
@@ -35,7 +40,7 @@ class ReturnsWriter {
 /// (m, 1-sigma major semi-axis of the horizontal covariance). NaN when not computed.
 class CloudWriter {
  public:
-  explicit CloudWriter(const std::string& path);
+  explicit CloudWriter(const std::string& path, const Eigen::Vector3d& map_origin = Eigen::Vector3d::Zero());
   void append(const Pass& pass);
   void close() { writer_.close(); }
   std::uint64_t points() const { return writer_.points(); }

@@ -28,6 +28,9 @@ struct PcdHeader {
   std::uint64_t height = 1;
   std::uint64_t points = 0;
   double viewpoint[7] = {0, 0, 0, 1, 0, 0, 0};
+  /// From the comment "# map_origin X Y Z" (pcd_pipeline's products of a georeferenced run: map
+  /// coordinates are x y z + map_origin); 0 without it.
+  double map_origin[3] = {0, 0, 0};
   PcdData data = PcdData::kBinary;
   std::size_t data_offset = 0;  ///< byte offset of the data section in the file
 
@@ -71,6 +74,13 @@ class PcdWriter {
   std::size_t point_bytes() const { return point_bytes_; }
   /// Appends `n` points from a row-major buffer of n * point_bytes() bytes.
   void append(const std::uint8_t* rows, std::size_t n);
+  /// The map origin the points' x y z are relative to (pcdp/georef.hpp), written as the header
+  /// comment "# map_origin X Y Z" when not 0 (PCL and other readers skip comment lines).
+  void set_map_origin(double x, double y, double z) {
+    map_origin_[0] = x;
+    map_origin_[1] = y;
+    map_origin_[2] = z;
+  }
   /// Writes the final file (WIDTH = points, HEIGHT = 1 unless `height` divides it).
   void close(std::uint64_t height = 1);
   std::uint64_t points() const { return points_; }
@@ -81,6 +91,7 @@ class PcdWriter {
   std::vector<PcdField> fields_;
   std::size_t point_bytes_ = 0;
   std::uint64_t points_ = 0;
+  double map_origin_[3] = {0, 0, 0};
   std::FILE* body_ = nullptr;
 };
 

@@ -4,6 +4,8 @@
 // DESIGN.md plus the merge state) and elevation.png (colour, hillshade, colour bar, scale bar).
 #pragma once
 
+#include <string>
+
 #include "pcdp/elevation.hpp"
 #include "pcdp/stage.hpp"
 
@@ -20,11 +22,20 @@ struct FuseElevationParams {
   double z_max = 1e9;       ///< m, points above are not fused
   bool png = true;
   int deflate_level = 1;    ///< of elevation.tif, 1 .. 12
+  /// The map origin the passes' coordinates are relative to (RunContext::map_origin): the grid,
+  /// extent and z_max are in map metres, so each point is fused at pass coordinates + origin.
+  double origin_x = 0, origin_y = 0, origin_z = 0;
+  std::string stage = "fuse_elevation";  ///< how messages name the stage
 };
+
+/// A grid for these parameters: its key origin at the map origin's cell, so that the grid holds
+/// the cells within ElevationGrid::kKeyReach of it (UTM coordinates at 1 mm included).
+ElevationGrid make_elevation_grid(const FuseElevationParams& p);
 
 const OptionSchema& fuse_elevation_schema();
 
-/// Adds the kept points of a registered pass to `grid`.
+/// Adds the kept points of a registered pass to `grid`. Throws InputError naming the stage, the
+/// pass and the point when a point to fuse lies beyond what the grid can hold (never wrapped).
 void fuse_pass(ElevationGrid& grid, const Pass& pass, const FuseElevationParams& p, double fallback_var);
 
 StageInfo fuse_elevation_stage_info();
