@@ -134,7 +134,7 @@ class FuseElevationStage final : public Stage {
   }
   void process(Pass& pass, StageReport&) override {
     CellBounds b;
-    for_each_point(pass, params_, fallback_var_, [&](double x, double y, double, double, std::int32_t) {
+    for_each_point(grid_, pass, params_, fallback_var_, [&](double x, double y, double, double, std::int32_t) {
       b.add(grid_.cell_index(x), grid_.cell_index(y));
     });
     check_extent(b, pass.source);
