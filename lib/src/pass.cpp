@@ -12,6 +12,7 @@
 #include <numeric>
 
 #include "pcdp/errors.hpp"
+#include "pcdp/io/input_file.hpp"
 
 namespace pcdp {
 
@@ -71,12 +72,9 @@ void required_fields(const io::PcdHeader& h, const std::string& source, int (&id
 }  // namespace
 
 void check_pass_header(const std::string& path) {
+  io::require_regular_file(path, "pass file");
   struct stat st {};
-  if (::stat(path.c_str(), &st) != 0)
-    throw InputError(path + ": cannot read the pass file (" + std::strerror(errno) + ")");
-  if (!S_ISREG(st.st_mode))
-    throw InputError(path + ": the pass file is not a regular file (a directory, FIFO or device cannot be a pass)");
-  if (::access(path.c_str(), R_OK) != 0)
+  if (::stat(path.c_str(), &st) != 0 || ::access(path.c_str(), R_OK) != 0)
     throw InputError(path + ": cannot read the pass file (" + std::strerror(errno) + ")");
   const io::PcdHeader h = io::read_pcd_header(path);
   int idx[7];

@@ -154,8 +154,10 @@ TEST(CommitHardeningCli, TwoRunsIntoOneFolderTheSecondRefusesAtOnce) {
 
 TEST(CommitHardeningCli, MergeCommitsItsOutputsAsASetAndLocksThem) {
   Data d = make_data("  - type: fuse_elevation\n");
-  ASSERT_EQ(run_cli({"run", d.yaml, "-q"}).exit_code, 0);
-  ASSERT_EQ(run_cli({"run", d.yaml, "-q", "--output-dir", d.dir + "/out2"}).exit_code, 0);
+  // Two grids of disjoint passes (merge refuses the same grid twice).
+  ASSERT_EQ(run_cli({"run", d.yaml, "-q", "--set", "input.scans=" + d.dir + "/pass_000.pcd"}).exit_code, 0);
+  ASSERT_EQ(run_cli({"run", d.yaml, "-q", "--output-dir", d.dir + "/out2", "--set",
+                     "input.scans=" + d.dir + "/pass_001.pcd"}).exit_code, 0);
   const std::string a = d.out + "/elevation.tif", b = d.dir + "/out2/elevation.tif";
   ASSERT_EQ(run_cli({"merge", a, b, "-o", d.dir + "/m.tif", "--png", d.dir + "/m.png"}).exit_code, 0);
   test::write_text(d.dir + "/m.tif", "old tif");
@@ -268,7 +270,10 @@ TEST(CommitHardeningCli, OutputPathsAreCheckedUpFront) {
 
 TEST(CommitHardeningCli, UnwritableOutputsExitWith4InEverySubcommand) {
   Data d = make_data("  - type: fuse_elevation\n");
-  ASSERT_EQ(run_cli({"run", d.yaml, "-q"}).exit_code, 0);
+  ASSERT_EQ(run_cli({"run", d.yaml, "-q", "--set", "input.scans=" + d.dir + "/pass_000.pcd"}).exit_code, 0);
+  ASSERT_EQ(run_cli({"run", d.yaml, "-q", "--output-dir", d.dir + "/out2", "--set",
+                     "input.scans=" + d.dir + "/pass_001.pcd"}).exit_code, 0);
+  const std::string tif2 = d.dir + "/out2/elevation.tif";  // a second grid (merge refuses one grid twice)
   const std::string file = d.dir + "/a_file";
   test::write_text(file, "x");
   const std::string through = file + "/x";  // a path through a file
@@ -279,8 +284,8 @@ TEST(CommitHardeningCli, UnwritableOutputsExitWith4InEverySubcommand) {
   const std::vector<std::vector<std::string>> cases = {
       {"run", d.yaml, "-q", "--output-dir", through},
       {"run", d.yaml, "-q", "--output-dir", file},
-      {"merge", tif, tif, "-o", through},
-      {"merge", tif, d.out + "/../out/elevation.tif", "-o", d.dir + "/m.tif", "--png", through},
+      {"merge", tif, tif2, "-o", through},
+      {"merge", tif, tif2, "-o", d.dir + "/m.tif", "--png", through},
       {"simulate", scene, "--output-dir", through},
       {"clean-cloud", cloud, "-o", through},
       {"clean-cloud", cloud, "-o", d.dir + "/c.pcd", "--removed", through},

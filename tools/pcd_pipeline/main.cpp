@@ -2,6 +2,7 @@
 // (0 ok, 1 internal error, 2 invalid configuration, 3 input data error, 4 an output cannot be written).
 #include <CLI/CLI.hpp>
 #include <iostream>
+#include <new>
 
 #include "bench.hpp"
 #include "commands.hpp"
@@ -187,6 +188,12 @@ int main(int argc, char** argv) {
   } catch (const OutputError& e) {
     std::cerr << "error: " << e.what() << "\n";
     return static_cast<int>(ExitCode::kOutput);
+  } catch (const std::bad_alloc&) {
+    // Readers and grids bound their memory by what the input holds (docs/robustness.md), so what
+    // is left is an input too large for this machine's memory: a data problem, not a bug.
+    std::cerr << "error: out of memory: the inputs need more memory than this machine can give "
+                 "(split the run into fewer passes per run, or use a coarser resolution)\n";
+    return static_cast<int>(ExitCode::kInput);
   } catch (const std::exception& e) {
     std::cerr << "internal error: " << e.what() << "\n";
     return static_cast<int>(ExitCode::kInternal);

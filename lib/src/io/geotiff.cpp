@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "pcdp/errors.hpp"
+#include "pcdp/io/input_file.hpp"
 #include "pcdp/options.hpp"
 #include "tiff_reader.hpp"
 #include "tiff_writer.hpp"
@@ -411,6 +412,7 @@ void check_distinct_grids(const std::vector<std::string>& paths) {
   };
   std::vector<Seen> seen;
   for (std::size_t k = 0; k < paths.size(); ++k) {
+    require_regular_file(paths[k], "GeoTIFF");  // before any read: a FIFO would block
     std::error_code ec;
     const std::uintmax_t size = fs::file_size(paths[k], ec);
     if (ec) throw InputError(paths[k] + ": cannot read (" + ec.message() + ")");
