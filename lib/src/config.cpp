@@ -487,7 +487,7 @@ std::vector<std::string> expand_scans(const std::string& where, const std::vecto
     if (rc == 0)
       for (std::size_t i = 0; i < g.gl_pathc; ++i) matched.emplace_back(g.gl_pathv[i]);
     ::globfree(&g);
-    std::sort(matched.begin(), matched.end());  // lexicographic, whatever the locale (DESIGN.md)
+    std::sort(matched.begin(), matched.end());  // lexicographic, whatever the locale (docs/data_contract.md)
     matched.erase(std::remove_if(matched.begin(), matched.end(),
                                  [](const std::string& m) {
                                    std::error_code ec;  // a symlink loop is no directory: refused below

@@ -61,7 +61,7 @@ void required_fields(const io::PcdHeader& h, const std::string& source, int (&id
     idx[r] = h.field_index(req.name);
     if (idx[r] < 0)
       fail(std::string("missing required field '") + req.name + "' (" + req.meaning +
-           "); the data contract (DESIGN.md) needs line, beam, range, bearing, amplitude, nod, stamp");
+           "); the data contract (docs/data_contract.md) needs line, beam, range, bearing, amplitude, nod, stamp");
     const io::PcdField& f = h.fields[static_cast<std::size_t>(idx[r])];
     if (f.type != req.type || f.size != req.size || f.count != 1)
       fail(std::string("field '") + req.name + "' has type " + type_text(f) + " but must be " +
@@ -116,7 +116,7 @@ Pass pass_from_table(io::PcdTable&& table, const std::string& source, std::size_
     p.extra.push_back({h.fields[i], std::move(table.columns[i])});
   }
 
-  // Order by (line, beam); unorganized files are accepted in any order (DESIGN.md).
+  // Order by (line, beam); unorganized files are accepted in any order (docs/data_contract.md).
   std::vector<std::size_t> order(n);
   std::iota(order.begin(), order.end(), 0);
   const auto less = [&](std::size_t a, std::size_t b) {

@@ -76,6 +76,7 @@ std::string jumped_poses(const std::string& dir, double dx) {
 // Item 3: the sample at 5 mm (a 5,339 x 7,035-cell bounding box) in 600 MB of address space: the
 // dense writer and picture needed 1.65 GB of resident memory. The file is sparse tiles.
 TEST(GridsHardeningCli, AFineGridOnTheSampleCostsWhatItObserved) {
+  PCDP_SKIP_IF_ADDRESS_SPACE_IS_SANITIZED();
   const std::string dir = test::fresh_dir();
   const auto r = run_cli_limited({"run", kSource + "/pipelines/nodding_terrain.yaml", "--output-dir", dir + "/out", "-q",
                                   "--set", "stages.fuse_elevation.resolution=0.005"},
@@ -90,6 +91,7 @@ TEST(GridsHardeningCli, AFineGridOnTheSampleCostsWhatItObserved) {
 // 65,536 tiles: exit 3 naming the stage, the pass and the size, not an out-of-memory crash. On one
 // thread and on several (the stage's two paths).
 TEST(GridsHardeningCli, APoseJumpPastTheGridLimitIsAnInputErrorNamingTheStage) {
+  PCDP_SKIP_IF_ADDRESS_SPACE_IS_SANITIZED();
   const std::string dir = test::fresh_dir();
   const std::string poses = jumped_poses(dir, 1000.0);
   for (const char* threads : {"1", "2"}) {
@@ -135,4 +137,30 @@ TEST(GridsHardeningCli, MergeRefusesTheSameGridTwiceAndJunkMetadata) {
   EXPECT_NE(r.err.find(dir + "/junk.tif: GDAL metadata item PCDP_RESOLUTION = '0.1junk000000000000' is not a number"),
             std::string::npos)
       << r.err;
+}
+
+// Running out of memory is a documented data error (exit 3, "out of memory"), never an internal
+// error: the sample run under a sweep of address-space limits, from too small to start the tool
+// to enough. Each limit ends in success, the out-of-memory error, or (below what the dynamic
+// loader needs) a failure to start; at least one limit reaches the tool's own message.
+TEST(GridsHardeningCli, OutOfMemoryIsAnInputErrorNeverAnInternalError) {
+  PCDP_SKIP_IF_ADDRESS_SPACE_IS_SANITIZED();
+  const std::string dir = test::fresh_dir();
+  int out_of_memory = 0, ok = 0;
+  for (std::size_t mb = 30; mb <= 120; mb += 6) {
+    const auto r = run_cli_limited({"run", kSource + "/pipelines/nodding_terrain.yaml", "--output-dir", dir + "/out", "-q"},
+                                   mb << 20);
+    EXPECT_EQ(r.err.find("internal error"), std::string::npos) << mb << " MB: " << r.err;
+    if (r.exit_code == 3) {
+      EXPECT_NE(r.err.find("error: out of memory"), std::string::npos) << mb << " MB: " << r.err;
+      ++out_of_memory;
+    } else if (r.exit_code == 0) {
+      ++ok;
+    } else {
+      EXPECT_TRUE(r.exit_code == 127 || r.exit_code == -1 || r.exit_code > 128 || r.exit_code == 4)
+          << mb << " MB: exit " << r.exit_code << " " << r.err;
+    }
+  }
+  EXPECT_GT(out_of_memory, 0);
+  EXPECT_GT(ok, 0);
 }

@@ -40,3 +40,12 @@ double median(std::vector<double> v);
 Pass line_pass(const std::vector<float>& ranges, const std::vector<float>& amps);
 
 }  // namespace pcdp::test
+
+/// Skips a test that limits the address space (RLIMIT_AS): AddressSanitizer's shadow memory needs
+/// more address space than any such limit, so under it the limit measures nothing.
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define PCDP_SKIP_IF_ADDRESS_SPACE_IS_SANITIZED() \
+  GTEST_SKIP() << "address-space limits do not apply under a sanitizer's shadow memory"
+#else
+#define PCDP_SKIP_IF_ADDRESS_SPACE_IS_SANITIZED() (void)0
+#endif

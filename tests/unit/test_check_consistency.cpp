@@ -71,8 +71,8 @@ Voxel voxel_at(const Eigen::Vector3d& p, double res) {
   return {static_cast<std::int64_t>(std::floor(p.x() / res)), static_cast<std::int64_t>(std::floor(p.y() / res)),
           static_cast<std::int64_t>(std::floor(p.z() / res))};
 }
-// The definition, the slow way: every ray walked voxel by voxel (the stage's method before
-// 2026-11-24), then each return judged against every other pass's voxel sets. `crossings`, if
+// The definition, the slow way: every ray walked voxel by voxel (a reference
+// implementation), then each return judged against every other pass's voxel sets. `crossings`, if
 // given, receives the number of (ray, lonely voxel) pairs the walks visit (the stage's
 // ray_crossings): a lonely voxel holds a return with no other pass's hit within hit_radius.
 std::vector<std::vector<Label>> reference_labels(const std::vector<Pass>& passes, const ConsistencyParams& p,

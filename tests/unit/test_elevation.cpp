@@ -196,7 +196,7 @@ TEST(Elevation, GeoTiffRoundTripAndGdalinfo) {
   // default min_support of 2.
   EXPECT_EQ(io::write_elevation_geotiff(g, dir + "/e.tif"), 1u);
   expect_same(g, io::read_elevation_geotiff(dir + "/e.tif"), 1e-6);
-  // gdalinfo (Debian's gdal-bin) sees the bands, nodata and north-up geotransform of DESIGN.md.
+  // gdalinfo (Debian's gdal-bin) sees the bands, nodata and north-up geotransform of docs/data_contract.md.
   const std::string info = gdalinfo(dir + "/e.tif");
   EXPECT_NE(info.find("Origin = (1.000000000000000,4.500000000000000)"), std::string::npos) << info;
   EXPECT_NE(info.find("Pixel Size = (0.250000000000000,-0.250000000000000)"), std::string::npos) << info;

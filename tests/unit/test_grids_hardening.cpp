@@ -131,6 +131,7 @@ void write_grid(const std::string& path, const GridSpec& s) {
 // sparse tiles that GDAL reads (values and nodata), our reader reads it back, the picture is
 // downsampled; all under 512 MB more address space.
 TEST(GridsHardening, FarApartCellsCostWhatTheyObserveInEveryProduct) {
+  PCDP_SKIP_IF_ADDRESS_SPACE_IS_SANITIZED();
   const std::string dir = test::fresh_dir();
   ElevationGrid g(0.1, 0.05);
   observe(g, 0.05, 0.05, 1.0);
@@ -226,6 +227,7 @@ TEST(GridsHardening, StripsWrittenBlockByBlockAreTheWholePlaneBytes) {
 // (1.08 GB; the old reader allocated that twice before decoding) is read a row at a time: the
 // first rows arrive, then the damage is an InputError, all under 64 MB more address space.
 TEST(GridsHardening, TheReaderAllocatesAsTheDataArrives) {
+  PCDP_SKIP_IF_ADDRESS_SPACE_IS_SANITIZED();
   const std::string dir = test::fresh_dir();
   const std::string path = dir + "/claims.tif";
   // A zlib stream of 3 rows of zeros (a stored block is enough: the reader inflates it), then

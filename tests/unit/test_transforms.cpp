@@ -81,7 +81,7 @@ TEST_P(RpyRoundTrip, GimbalLockStillReproducesTheMatrix) {
 INSTANTIATE_TEST_SUITE_P(Orders, RpyRoundTrip, ::testing::Values(RpyOrder::kXyz, RpyOrder::kZyx));
 
 TEST(Transforms, NodFramePointConvention) {
-  // DESIGN.md: nu > 0 to the left, eta > 0 above the horizon.
+  // docs/data_contract.md: nu > 0 to the left, eta > 0 above the horizon.
   const Eigen::Vector3d left = nod_frame_point(2.0, kPi / 2, 0.0);
   EXPECT_NEAR(left.y(), 2.0, 1e-12);
   const Eigen::Vector3d up = nod_frame_point(2.0, 0.0, 0.3);

@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 #include <iostream>
 #include <new>
+#include <system_error>
 
 #include "bench.hpp"
 #include "commands.hpp"
@@ -10,6 +11,12 @@
 #include "pcdp/io/atomic_file.hpp"
 #include "pcdp/nod_plan.hpp"
 #include "pcdp/occlusion_model.hpp"
+
+namespace {
+constexpr const char* kOutOfMemory =
+    "error: out of memory: the inputs need more memory than this machine can give "
+    "(split the run into fewer passes per run, or use a coarser resolution)\n";
+}  // namespace
 
 int main(int argc, char** argv) {
   using namespace pcdp;
@@ -191,9 +198,16 @@ int main(int argc, char** argv) {
   } catch (const std::bad_alloc&) {
     // Readers and grids bound their memory by what the input holds (docs/robustness.md), so what
     // is left is an input too large for this machine's memory: a data problem, not a bug.
-    std::cerr << "error: out of memory: the inputs need more memory than this machine can give "
-                 "(split the run into fewer passes per run, or use a coarser resolution)\n";
+    std::cerr << kOutOfMemory;
     return static_cast<int>(ExitCode::kInput);
+  } catch (const std::system_error& e) {
+    // A thread that cannot be started for want of memory is the same case.
+    if (e.code() == std::errc::resource_unavailable_try_again || e.code() == std::errc::not_enough_memory) {
+      std::cerr << kOutOfMemory;
+      return static_cast<int>(ExitCode::kInput);
+    }
+    std::cerr << "internal error: " << e.what() << "\n";
+    return static_cast<int>(ExitCode::kInternal);
   } catch (const std::exception& e) {
     std::cerr << "internal error: " << e.what() << "\n";
     return static_cast<int>(ExitCode::kInternal);

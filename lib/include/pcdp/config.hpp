@@ -14,7 +14,7 @@ namespace pcdp {
 
 enum class TransceiverAngle { kFixed, kMirror };
 
-/// The `sensor:` block (DESIGN.md). Units: metres, radians, seconds, amplitude units.
+/// The `sensor:` block (docs/data_contract.md). Units: metres, radians, seconds, amplitude units.
 struct SensorParams {
   double range_min = 0.1;
   double range_max = 30.0;

@@ -158,7 +158,7 @@ class ElevationGrid {
   // never moves a cell, and a visit of every cell reads memory in order), with a hash from key to
   // place: a lookup probes 8-byte keys. Against one heap node per cell (std::unordered_map): 2x
   // faster fusion and GeoTIFF writing in a run of several passes, but slower for one pass into a
-  // new grid, whose fresh chunks are page faults (docs/performance.md, fourth round).
+  // new grid, whose fresh chunks are page faults (docs/performance.md).
   static constexpr std::size_t kChunk = 256;
   struct Chunk {
     std::array<ElevationCell, kChunk> cells;

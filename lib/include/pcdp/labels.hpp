@@ -1,4 +1,4 @@
-// Return labels of the data contract (../shared/DESIGN.md). Codes are never renumbered;
+// Return labels of the data contract (docs/data_contract.md). Codes are never renumbered;
 // new reasons get new codes.
 #pragma once
 

@@ -1,4 +1,4 @@
-// One nodding pass: the raw returns of one PCD file (DESIGN.md "Input 1"), ordered by line and
+// One nodding pass: the raw returns of one PCD file (docs/data_contract.md "Input 1"), ordered by line and
 // beam, plus what the stages derive (labels, calibrated ranges, map points, sensor origins).
 #pragma once
 
@@ -25,7 +25,7 @@ struct Pass {
   std::string source;     ///< file path
   bool organized = false; ///< the file was organized (WIDTH = returns per line)
 
-  // Raw columns (DESIGN.md), sorted by (line, beam).
+  // Raw columns (docs/data_contract.md), sorted by (line, beam).
   std::vector<std::uint32_t> line, beam;
   std::vector<float> range, bearing, amplitude, nod;
   std::vector<double> stamp;

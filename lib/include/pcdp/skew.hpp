@@ -1,4 +1,4 @@
-// Skew correction (Broten & Collier 3.2; DESIGN.md "Skew").
+// Skew correction (Broten & Collier 3.2; docs/data_contract.md "Skew").
 //
 // The encoder is read once per line, at the stamp of the line's last return. Every return gets
 // the nod angle at its own stamp, interpolated linearly between the readings that bracket it and

@@ -72,7 +72,7 @@ class Stage {
   /// split() stages: folds one pass's work into the stage's state, in pass order.
   virtual void apply(std::unique_ptr<StageWork> /*work*/, StageReport& /*report*/) {}
   /// Processes one pass in place: may set labels, points, ranges. Must not change which
-  /// returns exist (every input return is kept exactly once, DESIGN.md).
+  /// returns exist (every input return is kept exactly once, docs/data_contract.md).
   virtual void process(Pass& pass, StageReport& report) = 0;
   /// After the last pass: write products, add run-level metrics.
   virtual void finish(OutputSink& /*sink*/, StageReport& /*report*/) {}

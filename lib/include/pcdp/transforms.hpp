@@ -1,7 +1,7 @@
 // Frames, roll-pitch-yaw and pose interpolation. This header owns the RPY convention: every
 // rotation built from roll/pitch/yaw in the project goes through rpy_to_matrix().
 //
-// Frames (../shared/DESIGN.md): nod frame N (the laser on its nodding mount), vehicle frame V,
+// Frames (docs/data_contract.md): nod frame N (the laser on its nodding mount), vehicle frame V,
 // map frame M (z against gravity). Transforms are named by frames: T_M_V maps vehicle
 // coordinates into the map frame, so  p_M = T_M_V * T_V_N * p_N.
 #pragma once
@@ -45,7 +45,7 @@ Rpy matrix_to_rpy(const Eigen::Matrix3d& r, RpyOrder order);
 /// Rigid transform from a translation and roll-pitch-yaw in the given order.
 Eigen::Isometry3d make_transform(const Eigen::Vector3d& t, const Rpy& rpy, RpyOrder order);
 
-/// A return in the nod frame N (DESIGN.md): bearing nu > 0 to the left, nod eta > 0 above the
+/// A return in the nod frame N (docs/data_contract.md): bearing nu > 0 to the left, nod eta > 0 above the
 /// horizon:  p_N = r * (cos nu cos eta, sin nu, cos nu sin eta).
 /// This is Broten & Collier's section 6.2 (p = d(cos psi, -sin psi) then the nod), with the in-plane
 /// angle measured counter-clockwise. Note the nod is a rotation about y by -eta: with the

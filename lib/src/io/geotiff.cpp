@@ -98,7 +98,7 @@ std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string
   t.tiepoint[3] = static_cast<double>(ix0) * res;
   t.tiepoint[4] = static_cast<double>(iy1 + 1) * res;
   // Metadata and band names where GDAL keeps them, so gdalinfo and read_elevation_geotiff see
-  // them as before (the writer was GDAL's until 2026-11-24).
+  // them as in files that GDAL writes.
   char band[32], resolution[32];
   std::snprintf(band, sizeof band, "%.17g", grid.band());
   std::snprintf(resolution, sizeof resolution, "%.17g", res);
@@ -143,7 +143,7 @@ std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string
   }
 
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  // Bands in groups that one visit of the cells fills: the six of DESIGN.md and each height
+  // Bands in groups that one visit of the cells fills: the six of docs/data_contract.md and each height
   // band's four. A cell spans several cache lines, so on a grid of two million cells one visit
   // per band (22) took 44 % of the write, against 5 visits now. Each task holds one block of its
   // group's planes.

@@ -1,7 +1,7 @@
 // A small reader of the float32 GeoTIFFs pcd_pipeline writes (tiff_writer.hpp) and those GDAL
 // wrote for it before (COMPRESS=DEFLATE, INTERLEAVE=BAND, strips): enough for `merge` to read
 // elevation grids back without linking GDAL, whose hundred-odd shared libraries cost every start
-// of the command line tool about 50 ms (docs/performance.md, twelfth round).
+// of the command line tool about 50 ms (docs/performance.md).
 //
 // It reads little-endian ("II") classic TIFF and BigTIFF, strips or tiles, uncompressed or
 // DEFLATE, no predictor, 32-bit IEEE float samples, planar or interleaved; the GeoTIFF pixel

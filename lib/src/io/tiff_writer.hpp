@@ -3,7 +3,7 @@
 //
 // Why not GDAL's own writer: it compresses every strip on one thread when the dataset closes, and
 // that was the longest single piece at the end of a run (22 of the 44 ms the 8-pass bench spends
-// writing products on one thread; docs/performance.md, eleventh round). GDAL reads these files
+// writing products on one thread; docs/performance.md). GDAL reads these files
 // (gdalinfo, QGIS); the tests read them back through it. `merge` reads them with tiff_reader.hpp.
 #pragma once
 

@@ -1,4 +1,4 @@
-// Outputs are committed as a set (DESIGN.md "Conventions", docs/robustness.md "Outputs").
+// Outputs are committed as a set (docs/data_contract.md "Conventions", docs/robustness.md "Outputs").
 //
 // A run's products are written into a staging folder beside the output folder, on the same
 // filesystem: `<parent>/.<name>.pcdp-new-<pid>`. On commit, the files of the old folder that are

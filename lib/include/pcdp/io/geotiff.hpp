@@ -1,5 +1,5 @@
 // The elevation grid on disk: a GeoTIFF (our own writer, GDAL's tags; read through GDAL) with the
-// bands of DESIGN.md (1 elevation m, 2 variance m^2, 3 count, 4 min m, 5 max m; float32, NaN = unobserved, north-up
+// bands of docs/data_contract.md (1 elevation m, 2 variance m^2, 3 count, 4 min m, 5 max m; float32, NaN = unobserved, north-up
 // geotransform in map metres, map x = east, map y = north), then 6 passes and, for each of the
 // cell's four highest height bands, its index, sum of 1/var, mean height and count (bands 7-22:
 // the exact merge state). GeoTIFF bands share one type, so these are float32 too: merged

@@ -1,5 +1,5 @@
 // Writers of the per-return products: returns.pcd (every input return exactly once, with its
-// label) and cloud.pcd (the kept points). Fields are those of DESIGN.md "Outputs".
+// label) and cloud.pcd (the kept points). Fields are those of docs/data_contract.md "Outputs".
 #pragma once
 
 #include <Eigen/Core>

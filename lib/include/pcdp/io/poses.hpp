@@ -1,4 +1,4 @@
-// The pose CSV of DESIGN.md ("Input 2"): header  stamp,x,y,z,roll,pitch,yaw  (s, m, rad in the
+// The pose CSV of docs/data_contract.md ("Input 2"): header  stamp,x,y,z,roll,pitch,yaw  (s, m, rad in the
 // pipeline's rpy_order), strictly increasing stamps, finite values, positions within +-1e8 m.
 #pragma once
 

@@ -176,7 +176,7 @@ std::vector<std::string> write_run(const SimResult& r, const SimConfig& cfg, con
 /// true top-surface height grid `dir/truth/height.pcd` (organized, x y z at `grid_resolution`).
 void write_truth(const SimResult& r, const SimConfig& cfg, const std::string& dir, double grid_resolution = 0.1);
 
-/// Writes one raw pass as a PCD in the DESIGN.md contract (organized, binary).
+/// Writes one raw pass as a PCD in the docs/data_contract.md contract (organized, binary).
 void write_pass_pcd(const Pass& pass, const std::string& path);
 
 /// Writes a pose CSV (stamp,x,y,z,roll,pitch,yaw in `order`).

@@ -1,7 +1,7 @@
 // Stage `fuse_elevation`: the kept points of every pass into one 2.5-D elevation grid
 // (elevation.hpp), each point weighted by its vertical variance (cov_zz from `register`; the
 // sensor's range_sigma^2 when the covariance is off). Writes elevation.tif (GeoTIFF, the bands of
-// DESIGN.md plus the merge state) and elevation.png (colour, hillshade, colour bar, scale bar).
+// docs/data_contract.md plus the merge state) and elevation.png (colour, hillshade, colour bar, scale bar).
 #pragma once
 
 #include <string>

@@ -1,4 +1,4 @@
-// Stage `register`: raw returns -> map frame (DESIGN.md "Units and frames").
+// Stage `register`: raw returns -> map frame (docs/data_contract.md "Units and frames").
 //
 // For every return: calibrated range (Ye & Borenstein eqs. 1-3, true = k * measured + b), the nod
 // angle at the return's own stamp (skew correction, skew.hpp), the point in the nod frame, the
