@@ -35,15 +35,6 @@ Snapshot snapshot(const std::string& dir, bool skip_report = true) {
   return s;
 }
 
-std::vector<std::string> leftovers(const std::string& parent, const std::string& name) {
-  std::vector<std::string> out;
-  for (const auto& e : fs::directory_iterator(parent)) {
-    const std::string n = e.path().filename().string();
-    if (n.rfind("." + name + ".pcdp-", 0) == 0) out.push_back(n);
-  }
-  return out;
-}
-
 struct Data {
   std::string dir, yaml, out;
 };
@@ -101,7 +92,7 @@ TEST(CommitHardeningCli, ARunKilledOrFailedAtEachCommitStepLeavesTheOldOrTheNewS
     EXPECT_TRUE(killed.exit_code == -1 || killed.exit_code == 128 + SIGKILL) << "killed by SIGKILL: " << killed.exit_code;
     fs::remove_all(d.out);
     ASSERT_EQ(run_cli({"run", d.yaml, "-q"}).exit_code, 0) << "the next run cleans up after the killed one";
-    EXPECT_TRUE(leftovers(d.dir, "out").empty());
+    EXPECT_TRUE(test::commit_leftovers(d.dir, "out").empty());
     test::write_text(d.out + "/notes.txt", "mine");
     const auto failed = run_with_env("PCDP_TEST_COMMIT_FAULT", "fail:" + std::to_string(k), args);
     const Snapshot after_fail = snapshot(d.out);
@@ -149,7 +140,7 @@ TEST(CommitHardeningCli, TwoRunsIntoOneFolderTheSecondRefusesAtOnce) {
   EXPECT_TRUE(codes[0] == 0 || codes[1] == 0);
   EXPECT_TRUE((codes[0] == 0 || codes[0] == 4) && (codes[1] == 0 || codes[1] == 4));
   EXPECT_TRUE(fs::exists(d.out + "/returns.pcd") && fs::exists(d.out + "/map.bt"));
-  EXPECT_TRUE(leftovers(d.dir, "out").empty());
+  EXPECT_TRUE(test::commit_leftovers(d.dir, "out").empty());
 }
 
 TEST(CommitHardeningCli, MergeCommitsItsOutputsAsASetAndLocksThem) {
@@ -209,7 +200,7 @@ TEST(CommitHardeningCli, AFolderNamedLikeAProductFailsBeforeTheWorkAndKeepsTheOl
   EXPECT_EQ(r.exit_code, 4);
   EXPECT_NE(r.err.find("elevation.png: a folder has the name of an output of this run"), std::string::npos) << r.err;
   EXPECT_EQ(snapshot(d.out, false), before);
-  EXPECT_TRUE(leftovers(d.dir, "out").empty());
+  EXPECT_TRUE(test::commit_leftovers(d.dir, "out").empty());
 }
 
 TEST(CommitHardeningCli, LeftoversOfKilledRunsAreRemovedAndSigtermCleansUp) {
@@ -217,7 +208,7 @@ TEST(CommitHardeningCli, LeftoversOfKilledRunsAreRemovedAndSigtermCleansUp) {
   fs::create_directories(d.dir + "/.out.pcdp-new-999999/sub");
   test::write_text(d.dir + "/.out.pcdp-new-999999/returns.pcd.body", "junk");
   ASSERT_EQ(run_cli({"run", d.yaml, "-q"}).exit_code, 0);
-  EXPECT_TRUE(leftovers(d.dir, "out").empty());
+  EXPECT_TRUE(test::commit_leftovers(d.dir, "out").empty());
   // SIGTERM mid-run: exit 143, nothing staged is left, the old set stays.
   const Snapshot before = snapshot(d.out, false);
   test::write_text(d.dir + "/long.yaml", test::read_text(d.yaml) + "  - type: check_consistency\n");
@@ -230,7 +221,7 @@ TEST(CommitHardeningCli, LeftoversOfKilledRunsAreRemovedAndSigtermCleansUp) {
   }
   bool staged = false;
   for (int i = 0; i < 5000 && !staged; ++i) {
-    staged = !leftovers(d.dir, "out").empty();
+    staged = !test::commit_leftovers(d.dir, "out").empty();
     if (!staged) usleep(200);
   }
   kill(pid, SIGTERM);
@@ -245,9 +236,9 @@ TEST(CommitHardeningCli, LeftoversOfKilledRunsAreRemovedAndSigtermCleansUp) {
   // while it does may recreate a file in the staging folder: the next run removes that.
   // (The single-threaded case is exact: test_commit_hardening.cpp, unit.)
   ASSERT_EQ(run_cli({"validate", d.yaml, "-q"}).exit_code, 0);
-  for (const auto& l : leftovers(d.dir, "out")) EXPECT_EQ(l.rfind(".out.pcdp-new-", 0), 0u) << l;
+  for (const auto& l : test::commit_leftovers(d.dir, "out")) EXPECT_EQ(l.rfind(".out.pcdp-new-", 0), 0u) << l;
   ASSERT_EQ(run_cli({"run", d.yaml, "-q"}).exit_code, 0);
-  EXPECT_TRUE(leftovers(d.dir, "out").empty()) << "no staging folder, no lock file";
+  EXPECT_TRUE(test::commit_leftovers(d.dir, "out").empty()) << "no staging folder, no lock file";
 }
 
 TEST(CommitHardeningCli, OutputPathsAreCheckedUpFront) {
@@ -316,7 +307,7 @@ TEST(CommitHardeningCli, UnwritableOutputsExitWith4InEverySubcommand) {
   EXPECT_EQ(WEXITSTATUS(status), 4) << test::read_text(d.dir + "/err.txt");
   EXPECT_NE(test::read_text(d.dir + "/err.txt").find("File too large"), std::string::npos);
   EXPECT_EQ(snapshot(d.out, false), before);
-  EXPECT_TRUE(leftovers(d.dir, "out").empty());
+  EXPECT_TRUE(test::commit_leftovers(d.dir, "out").empty());
   // A read-only folder (not for root, who may write anyway).
   if (::geteuid() != 0) {
     fs::create_directories(d.dir + "/ro");

@@ -9,6 +9,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "pcdp/errors.hpp"
+#include "pcdp/pass.hpp"
 #include "pcdp/stages/register.hpp"
 #include "pcdp_test_paths.hpp"
 
@@ -52,6 +54,26 @@ CliResult run_cli(const std::vector<std::string>& args) {
 void write_text(const std::string& path, const std::string& text) {
   std::ofstream f(path, std::ios::binary);
   f << text;
+}
+
+std::string pass_read_error(const std::string& content) {
+  const std::string path = fresh_dir("read") + "/p.pcd";
+  write_text(path, content);
+  try {
+    read_pass(path, 0);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+std::vector<std::string> commit_leftovers(const std::string& parent, const std::string& name) {
+  std::vector<std::string> out;
+  for (const auto& e : std::filesystem::directory_iterator(parent)) {
+    const std::string n = e.path().filename().string();
+    if (n.rfind("." + name + ".pcdp-", 0) == 0) out.push_back(n);
+  }
+  return out;
 }
 
 std::string read_text(const std::string& path) {

@@ -30,6 +30,13 @@ sim::SimConfig small_sim_config();
 std::string pipeline_yaml(const sim::SimConfig& cfg, const std::string& dir, const std::string& out_dir,
                           const std::string& extra_register_options = "");
 
+/// The InputError message of reading `content` as a pass (a fresh file), or "(no error)".
+std::string pass_read_error(const std::string& content);
+
+/// Entries `.<name>.pcdp-*` beside the output folder `parent/name` (staging, aside, lock): what a
+/// commit must not leave behind.
+std::vector<std::string> commit_leftovers(const std::string& parent, const std::string& name);
+
 /// Column `name` of a PCD table as doubles.
 std::vector<double> column(const io::PcdTable& t, const std::string& name);
 

@@ -37,16 +37,6 @@ Snapshot snapshot(const std::string& dir) {
   return s;
 }
 
-/// Entries `.<name>.pcdp-*` beside the folder (staging, aside, lock): leftovers.
-std::vector<std::string> leftovers(const std::string& parent, const std::string& name) {
-  std::vector<std::string> out;
-  for (const auto& e : fs::directory_iterator(parent)) {
-    const std::string n = e.path().filename().string();
-    if (n.rfind("." + name + ".pcdp-", 0) == 0) out.push_back(n);
-  }
-  return out;
-}
-
 // The hook: counts steps; fails step g_fail_at (errno g_fail_errno), kills at g_kill_at, and
 // reports "no RENAME_EXCHANGE here" (EINVAL) for exchange steps when g_no_exchange.
 int g_steps = 0, g_fail_at = 0, g_kill_at = 0, g_fail_errno = EIO;
@@ -101,7 +91,7 @@ void fault_matrix(bool with_old, bool no_exchange) {
   const std::string out = base + "/out";
   const auto prepare = [&] {
     fs::remove_all(out);
-    for (const auto& l : leftovers(base, "out")) fs::remove_all(base + "/" + l);
+    for (const auto& l : test::commit_leftovers(base, "out")) fs::remove_all(base + "/" + l);
     if (with_old) make_old_set(out);
   };
   prepare();
@@ -113,7 +103,7 @@ void fault_matrix(bool with_old, bool no_exchange) {
   const int steps = g_steps;
   ASSERT_GE(steps, with_old ? 5 : 1);
   EXPECT_EQ(snapshot(out), fresh);
-  EXPECT_TRUE(leftovers(base, "out").empty());
+  EXPECT_TRUE(test::commit_leftovers(base, "out").empty());
 
   for (int k = 1; k <= steps; ++k) {
     SCOPED_TRACE("step " + std::to_string(k) + " of " + std::to_string(steps));
@@ -137,7 +127,7 @@ void fault_matrix(bool with_old, bool no_exchange) {
     {  // the next run removes whatever was left, and the folder is still whole
       io::StagedOutputs next(out);
     }
-    EXPECT_TRUE(leftovers(base, "out").empty());
+    EXPECT_TRUE(test::commit_leftovers(base, "out").empty());
     EXPECT_EQ(snapshot(out), after);
 
     // Kill at step k.
@@ -162,7 +152,7 @@ void fault_matrix(bool with_old, bool no_exchange) {
     {  // recovery by the next run into the folder
       io::StagedOutputs next(out);
     }
-    EXPECT_TRUE(leftovers(base, "out").empty());
+    EXPECT_TRUE(test::commit_leftovers(base, "out").empty());
     const Snapshot recovered = snapshot(out);
     EXPECT_TRUE(recovered == old || recovered == fresh) << "a mix after a kill at step " << k;
     // With RENAME_EXCHANGE the folder is whole even before the recovery.
@@ -290,7 +280,7 @@ TEST(CommitHardening, OneRunAtATimePerOutputAndADeadHolderBlocksNothing) {
   waitpid(pid, nullptr, 0);
   EXPECT_TRUE(fs::exists(base + "/.out.pcdp-lock"));
   { io::StagedOutputs after(base + "/out"); }
-  EXPECT_TRUE(leftovers(base, "out").empty()) << "the lock file goes with its holder";
+  EXPECT_TRUE(test::commit_leftovers(base, "out").empty()) << "the lock file goes with its holder";
 }
 
 TEST(CommitHardening, SigtermRemovesTheStagedFilesAndExits143) {

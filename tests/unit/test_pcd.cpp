@@ -23,17 +23,6 @@ std::string ascii_pcd(const std::vector<std::string>& rows, const std::string& h
   return s;
 }
 
-std::string error_of(const std::string& content) {
-  const std::string path = test::fresh_dir() + "/p.pcd";
-  test::write_text(path, content);
-  try {
-    read_pass(path, 0);
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
-
 const std::vector<std::string> kRows = {"0 0 1.5 -0.1 100 0.2 10.000", "0 1 0 0.0 0 0.2 10.001",
                                         "0 2 2.5 0.1 80 0.2 10.002", "1 0 3.0 -0.1 90 0.25 10.010",
                                         "1 1 nan 0.0 0 0.25 10.011", "1 2 3.5 0.1 70 0.25 10.012"};
@@ -92,39 +81,39 @@ TEST(Pcd, ExtraFieldsAreCarried) {
 }
 
 TEST(Pcd, HeaderAndDataErrorsNameTheRule) {
-  EXPECT_NE(error_of("").find("the file is empty"), std::string::npos);
-  EXPECT_NE(error_of("VERSION 0.7\nFIELDS x\n").find("no DATA line"), std::string::npos);
-  std::string e = error_of(ascii_pcd(kRows).replace(ascii_pcd(kRows).find("SIZE 4 4 4 4 4 4 8"), 18, "SIZE 4 4 4 4 4 4"));
+  EXPECT_NE(test::pass_read_error("").find("the file is empty"), std::string::npos);
+  EXPECT_NE(test::pass_read_error("VERSION 0.7\nFIELDS x\n").find("no DATA line"), std::string::npos);
+  std::string e = test::pass_read_error(ascii_pcd(kRows).replace(ascii_pcd(kRows).find("SIZE 4 4 4 4 4 4 8"), 18, "SIZE 4 4 4 4 4 4"));
   EXPECT_NE(e.find("SIZE has 6 entries but FIELDS has 7"), std::string::npos) << e;
   // Missing field.
   std::string h2 = "VERSION 0.7\nFIELDS line beam range bearing amplitude stamp\nSIZE 4 4 4 4 4 8\nTYPE U U F F F F\n";
-  e = error_of(ascii_pcd({"0 0 1 0 1 1"}, h2));
+  e = test::pass_read_error(ascii_pcd({"0 0 1 0 1 1"}, h2));
   EXPECT_NE(e.find("missing required field 'nod'"), std::string::npos) << e;
   // Wrong type: stamp as float32.
   std::string h3 = std::string(kHeader);
   h3.replace(h3.find("SIZE 4 4 4 4 4 4 8"), 18, "SIZE 4 4 4 4 4 4 4");
-  e = error_of(ascii_pcd(kRows, h3));
+  e = test::pass_read_error(ascii_pcd(kRows, h3));
   EXPECT_NE(e.find("field 'stamp' has type F4 but must be F8"), std::string::npos) << e;
   // Ascii: header claims more points than the file holds.
   std::string s = ascii_pcd(kRows);
   s = s.substr(0, s.rfind("1 2 3.5"));
-  e = error_of(s);
+  e = test::pass_read_error(s);
   EXPECT_NE(e.find("truncated: the header claims 6 points"), std::string::npos) << e;
   EXPECT_NE(e.find("holds 5 points"), std::string::npos) << e;
   // Bad value.
-  e = error_of(ascii_pcd({"0 0 abc 0 1 0 1"}));
+  e = test::pass_read_error(ascii_pcd({"0 0 abc 0 1 0 1"}));
   EXPECT_NE(e.find("field 'range': 'abc' is not a valid F4 value"), std::string::npos) << e;
-  e = error_of(ascii_pcd({"-1 0 1 0 1 0 1"}));
+  e = test::pass_read_error(ascii_pcd({"-1 0 1 0 1 0 1"}));
   EXPECT_NE(e.find("field 'line': '-1' is not a valid U4 value"), std::string::npos) << e;
   // WIDTH x HEIGHT disagrees with POINTS.
   s = ascii_pcd(kRows);
   s.replace(s.find("POINTS 6"), 8, "POINTS 7");
-  EXPECT_NE(error_of(s).find("POINTS 7 disagrees with WIDTH x HEIGHT"), std::string::npos);
+  EXPECT_NE(test::pass_read_error(s).find("POINTS 7 disagrees with WIDTH x HEIGHT"), std::string::npos);
   // A header claiming billions of points is refused before any allocation.
   s = ascii_pcd(kRows);
   s.replace(s.find("WIDTH 6"), 7, "WIDTH 4000000000");
   s.replace(s.find("POINTS 6"), 8, "POINTS 4000000000");
-  e = error_of(s);
+  e = test::pass_read_error(s);
   EXPECT_NE(e.find("claims 4000000000 points"), std::string::npos) << e;
 }
 
@@ -156,32 +145,32 @@ TEST(Pcd, TruncatedAndOverlongBinary) {
 TEST(Pcd, ContractViolationsNameFieldLineAndBeam) {
   auto rows = kRows;
   rows[2] = "0 2 -2.5 0.1 80 0.2 10.002";
-  std::string e = error_of(ascii_pcd(rows));
+  std::string e = test::pass_read_error(ascii_pcd(rows));
   EXPECT_NE(e.find("field 'range', line 0 beam 2: -2.5"), std::string::npos) << e;
   rows = kRows;
   rows[2] = "0 2 2.5 0.1 80 0.2 nan";
-  EXPECT_NE(error_of(ascii_pcd(rows)).find("field 'stamp', line 0 beam 2: stamp is not finite"), std::string::npos);
+  EXPECT_NE(test::pass_read_error(ascii_pcd(rows)).find("field 'stamp', line 0 beam 2: stamp is not finite"), std::string::npos);
   rows = kRows;
   rows[2] = "0 2 2.5 inf 80 0.2 10.002";
-  EXPECT_NE(error_of(ascii_pcd(rows)).find("field 'bearing', line 0 beam 2"), std::string::npos);
+  EXPECT_NE(test::pass_read_error(ascii_pcd(rows)).find("field 'bearing', line 0 beam 2"), std::string::npos);
   rows = kRows;
   rows[2] = "0 2 2.5 0.1 80 0.3 10.002";
-  EXPECT_NE(error_of(ascii_pcd(rows)).find("differs within the line"), std::string::npos);
+  EXPECT_NE(test::pass_read_error(ascii_pcd(rows)).find("differs within the line"), std::string::npos);
   rows = kRows;
   rows[2] = "0 2 2.5 0.1 80 0.2 9.0";
-  EXPECT_NE(error_of(ascii_pcd(rows)).find("stamps must not decrease along a line"), std::string::npos);
+  EXPECT_NE(test::pass_read_error(ascii_pcd(rows)).find("stamps must not decrease along a line"), std::string::npos);
   rows = kRows;
   rows[5] = "1 2 3.5 0.1 70 0.25 10.002";
   rows[4] = "1 1 nan 0.0 0 0.25 10.001";
   rows[3] = "1 0 3.0 -0.1 90 0.25 10.0";
-  e = error_of(ascii_pcd(rows));
+  e = test::pass_read_error(ascii_pcd(rows));
   EXPECT_NE(e.find("from line to line"), std::string::npos) << e;
   rows = kRows;
   rows[1] = "0 0 0 0.0 0 0.2 10.001";
-  EXPECT_NE(error_of(ascii_pcd(rows)).find("line 0 beam 0: appears twice"), std::string::npos);
+  EXPECT_NE(test::pass_read_error(ascii_pcd(rows)).find("line 0 beam 0: appears twice"), std::string::npos);
   rows = kRows;
   rows[0] = "0 0 1.5 -0.1 -3 0.2 10.000";
-  EXPECT_NE(error_of(ascii_pcd(rows)).find("field 'amplitude', line 0 beam 0"), std::string::npos);
+  EXPECT_NE(test::pass_read_error(ascii_pcd(rows)).find("field 'amplitude', line 0 beam 0"), std::string::npos);
 }
 
 TEST(Lzf, DecodesLiteralsAndOverlappingBackReferences) {
@@ -213,7 +202,7 @@ TEST(Pcd, NanAndInfInEveryNumericField) {
       std::string row;
       for (const auto& c : cells) row += c + " ";
       rows[3] = row;
-      const std::string e = error_of(ascii_pcd(rows));
+      const std::string e = test::pass_read_error(ascii_pcd(rows));
       const bool allowed = (f == 2 || f == 4) && std::string(bad) == "nan";
       if (allowed) {
         EXPECT_EQ(e, "(no error)") << fields[f] << " " << bad;
@@ -233,7 +222,7 @@ TEST(Pcd, BinaryCompressedWithABadLength) {
   body.append(reinterpret_cast<const char*>(&csize), 4);
   body.append(reinterpret_cast<const char*>(&usize), 4);
   body.append(40, '\x01');
-  std::string e = error_of(body);
+  std::string e = test::pass_read_error(body);
   EXPECT_NE(e.find("binary_compressed declares 500 compressed bytes but 40 follow"), std::string::npos) << e;
   // A wrong uncompressed size.
   body = header;
@@ -241,7 +230,7 @@ TEST(Pcd, BinaryCompressedWithABadLength) {
   body.append(reinterpret_cast<const char*>(&c2), 4);
   body.append(reinterpret_cast<const char*>(&u2), 4);
   body.append(40, '\x01');
-  e = error_of(body);
+  e = test::pass_read_error(body);
   EXPECT_NE(e.find("uncompressed size 999 disagrees with the header claims 10 points (320 bytes)"), std::string::npos) << e;
   // Garbage that does not decode.
   body = header;
@@ -249,7 +238,7 @@ TEST(Pcd, BinaryCompressedWithABadLength) {
   body.append(reinterpret_cast<const char*>(&c3), 4);
   body.append(reinterpret_cast<const char*>(&u3), 4);
   body.append("\xff\xff\xff\xff\xff\xff\xff\xff", 8);
-  e = error_of(body);
+  e = test::pass_read_error(body);
   EXPECT_NE(e.find("corrupt LZF data (does not decode to 320 bytes)"), std::string::npos) << e;
 }
 
@@ -258,7 +247,7 @@ TEST(Pcd, BinaryCompressedWithABadLength) {
 TEST(Pcd, DataLineWithoutTrailingNewlineIsAnEmptyBodyNotACrash) {
   const std::string head = std::string(kHeader) + "WIDTH 2\nHEIGHT 1\nPOINTS 2\n";
   for (const char* data : {"DATA ascii", "DATA binary", "DATA binary_compressed"}) {
-    const std::string msg = error_of(head + data);
+    const std::string msg = test::pass_read_error(head + data);
     EXPECT_NE(msg, "(no error)") << data;
     EXPECT_NE(msg.find("p.pcd"), std::string::npos) << msg;
   }

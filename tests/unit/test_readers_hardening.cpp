@@ -25,17 +25,6 @@ namespace {
 
 const std::string kRequired = "line beam range bearing amplitude nod stamp";
 
-std::string error_of_pcd(const std::string& content) {
-  const std::string path = test::fresh_dir("readers") + "/p.pcd";
-  test::write_text(path, content);
-  try {
-    read_pass(path, 0);
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
-
 std::string error_of_poses(const std::string& content) {
   const std::string path = test::fresh_dir("readers") + "/poses.csv";
   test::write_text(path, content);
@@ -85,7 +74,7 @@ TEST(ReadersHardening, PcdSizeArithmeticThatOverflowsIsRefused) {
   const std::uint64_t pb = 1ull << 31;
   for (const auto& wh : {std::pair<std::uint64_t, std::uint64_t>{1ull << 33, 1}, {1ull << 25, 1ull << 8}}) {
     for (const char* data : {"binary", "binary_compressed", "ascii"}) {
-      const std::string e = error_of_pcd(padded_header(pb, wh.first, wh.second, data));
+      const std::string e = test::pass_read_error(padded_header(pb, wh.first, wh.second, data));
       EXPECT_NE(e.find("p.pcd: header line"), std::string::npos) << data << ": " << e;
       EXPECT_NE(e.find("overflow 64-bit arithmetic"), std::string::npos) << data << ": " << e;
     }
@@ -109,13 +98,13 @@ TEST(ReadersHardening, AsciiPcdIsNeverSizedByTheHeadersClaim) {
   }
   const std::string h = "VERSION 0.7\n" + fields + "\n" + size + "\n" + type + "\n" + count +
                         "\nWIDTH 8589934592\nHEIGHT 1\nPOINTS 8589934592\nDATA ascii\n";
-  const std::string e = error_of_pcd(h + std::string(1000, '0'));
+  const std::string e = test::pass_read_error(h + std::string(1000, '0'));
   EXPECT_NE(e.find("p.pcd: header line"), std::string::npos) << e;
   EXPECT_NE(e.find("POINTS"), std::string::npos) << e;
 
   // Within 64 bits but beyond what the file holds in any encoding: refused by the header too.
   const std::string big = padded_header(32 + 8 * 1000000, 1000, 1, "ascii") + "0 0 1.5 0 10 0 1.0\n";
-  const std::string e2 = error_of_pcd(big);
+  const std::string e2 = test::pass_read_error(big);
   EXPECT_NE(e2.find("truncated: the header claims 1000 points (8000032000 bytes)"), std::string::npos) << e2;
   EXPECT_NE(e2.find("too few for any PCD encoding"), std::string::npos) << e2;
 }
@@ -134,10 +123,10 @@ TEST(ReadersHardening, ManyFieldsAreCheckedFastAndBounded) {
     return "VERSION 0.7\n" + fields + "\n" + size + "\n" + type + "\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n" + row + "\n";
   };
   const auto t0 = std::chrono::steady_clock::now();
-  EXPECT_EQ(error_of_pcd(many(10000, false)), "(no error)");
-  const std::string dup = error_of_pcd(many(10000, true));
+  EXPECT_EQ(test::pass_read_error(many(10000, false)), "(no error)");
+  const std::string dup = test::pass_read_error(many(10000, true));
   EXPECT_NE(dup.find("p.pcd: header line 2 (FIELDS): field 'f7' appears twice in FIELDS"), std::string::npos) << dup;
-  const std::string over = error_of_pcd(many(70000, false));
+  const std::string over = test::pass_read_error(many(70000, false));
   EXPECT_NE(over.find("header line 2 (FIELDS): 70000 fields; at most 10000 are supported"), std::string::npos) << over;
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   EXPECT_LT(s, 5.0) << "three headers of 10,000 to 70,000 fields";
@@ -145,67 +134,67 @@ TEST(ReadersHardening, ManyFieldsAreCheckedFastAndBounded) {
   const std::string pad = std::string("VERSION 0.7\nFIELDS ") + kRequired +
                           " _ _\nSIZE 4 4 4 4 4 4 8 1 1\nTYPE U U F F F F F U U\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n" +
                           kRow + " 0 0\n";
-  EXPECT_EQ(error_of_pcd(pad), "(no error)");
+  EXPECT_EQ(test::pass_read_error(pad), "(no error)");
 }
 
 // Item 13: repeated header keys, HEIGHT 0 with points, junk in numbers, NUL bytes, trailing bytes.
 TEST(ReadersHardening, PcdHeaderIsStrict) {
-  EXPECT_EQ(error_of_pcd(one_point_ascii()), "(no error)");
-  std::string e = error_of_pcd(one_point_ascii(kAsciiHeader, "WIDTH 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\n"));
+  EXPECT_EQ(test::pass_read_error(one_point_ascii()), "(no error)");
+  std::string e = test::pass_read_error(one_point_ascii(kAsciiHeader, "WIDTH 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\n"));
   EXPECT_NE(e.find("p.pcd: header line 7 (WIDTH): a second WIDTH line (the first is header line 6)"), std::string::npos) << e;
   for (const char* key : {"VERSION 0.7\n", "SIZE 4 4 4 4 4 4 8\n", "TYPE U U F F F F F\n", "COUNT 1 1 1 1 1 1 1\n",
                           "FIELDS line beam range bearing amplitude nod stamp\n", "COLUMNS line beam range bearing amplitude nod stamp\n",
                           "VIEWPOINT 0 0 0 1 0 0 0\nVIEWPOINT 0 0 0 1 0 0 0\n"}) {
-    e = error_of_pcd(one_point_ascii(std::string(kAsciiHeader) + key));
+    e = test::pass_read_error(one_point_ascii(std::string(kAsciiHeader) + key));
     EXPECT_NE(e.find(": a second "), std::string::npos) << key << e;
   }
-  e = error_of_pcd(one_point_ascii(kAsciiHeader, "WIDTH 1\nHEIGHT 1\nPOINTS 1\nPOINTS 1\n"));
+  e = test::pass_read_error(one_point_ascii(kAsciiHeader, "WIDTH 1\nHEIGHT 1\nPOINTS 1\nPOINTS 1\n"));
   EXPECT_NE(e.find("a second POINTS line"), std::string::npos) << e;
   // WIDTH 5 HEIGHT 0: POINTS 0 agrees with the product, but no file has 5 points in 0 rows.
-  e = error_of_pcd(std::string(kAsciiHeader) + "WIDTH 5\nHEIGHT 0\nPOINTS 0\nDATA ascii\n");
+  e = test::pass_read_error(std::string(kAsciiHeader) + "WIDTH 5\nHEIGHT 0\nPOINTS 0\nDATA ascii\n");
   EXPECT_NE(e.find("p.pcd: header line 7 (HEIGHT): HEIGHT 0 with WIDTH 5"), std::string::npos) << e;
-  e = error_of_pcd(std::string(kAsciiHeader) + "WIDTH 5\nHEIGHT 0\nDATA ascii\n");
+  e = test::pass_read_error(std::string(kAsciiHeader) + "WIDTH 5\nHEIGHT 0\nDATA ascii\n");
   EXPECT_NE(e.find("HEIGHT 0 with WIDTH 5"), std::string::npos) << e;
-  e = error_of_pcd(one_point_ascii(kAsciiHeader, "WIDTH 1\nHEIGHT 1\nPOINTS 2\n"));
+  e = test::pass_read_error(one_point_ascii(kAsciiHeader, "WIDTH 1\nHEIGHT 1\nPOINTS 2\n"));
   EXPECT_NE(e.find("header line 8 (POINTS): POINTS 2 disagrees with WIDTH x HEIGHT = 1 x 1"), std::string::npos) << e;
   // An empty file as PCL writes it (WIDTH 0 HEIGHT 0) and as we write it (WIDTH 0 HEIGHT 1) stay valid.
-  EXPECT_EQ(error_of_pcd(std::string(kAsciiHeader) + "WIDTH 0\nHEIGHT 0\nPOINTS 0\nDATA ascii\n"), "(no error)");
-  EXPECT_EQ(error_of_pcd(std::string(kAsciiHeader) + "WIDTH 0\nHEIGHT 1\nPOINTS 0\nDATA ascii\n"), "(no error)");
+  EXPECT_EQ(test::pass_read_error(std::string(kAsciiHeader) + "WIDTH 0\nHEIGHT 0\nPOINTS 0\nDATA ascii\n"), "(no error)");
+  EXPECT_EQ(test::pass_read_error(std::string(kAsciiHeader) + "WIDTH 0\nHEIGHT 1\nPOINTS 0\nDATA ascii\n"), "(no error)");
   // Junk after a number, and a NUL that used to end the number early.
   for (const std::string& bad : std::vector<std::string>{"WIDTH 1junk", "WIDTH 1.0", "WIDTH 0x1", "WIDTH 1 1", std::string("WIDTH 1\0junk", 12)}) {
-    e = error_of_pcd(one_point_ascii(kAsciiHeader, bad + "\nHEIGHT 1\nPOINTS 1\n"));
+    e = test::pass_read_error(one_point_ascii(kAsciiHeader, bad + "\nHEIGHT 1\nPOINTS 1\n"));
     EXPECT_NE(e.find("p.pcd: header line 6"), std::string::npos) << bad << ": " << e;
   }
-  e = error_of_pcd(one_point_ascii(std::string(kAsciiHeader) + "VIEWPOINT 0 0 0 1 0 0 0.1junk\n"));
+  e = test::pass_read_error(one_point_ascii(std::string(kAsciiHeader) + "VIEWPOINT 0 0 0 1 0 0 0.1junk\n"));
   EXPECT_NE(e.find("'0.1junk' is not a finite number"), std::string::npos) << e;
   std::string h = kAsciiHeader;
   h.replace(h.find("SIZE 4 4 4 4 4 4 8"), 18, "SIZE 4 4 4 4 4 4 8x");
-  e = error_of_pcd(one_point_ascii(h));
+  e = test::pass_read_error(one_point_ascii(h));
   EXPECT_NE(e.find("header line 3 (SIZE): field 'stamp': SIZE '8x' must be 1, 2, 4 or 8"), std::string::npos) << e;
   h = kAsciiHeader;
   h.replace(h.find("COUNT 1 1 1 1 1 1 1"), 19, "COUNT 1 1 1 1 1 1 1junk");
-  e = error_of_pcd(one_point_ascii(h));
+  e = test::pass_read_error(one_point_ascii(h));
   EXPECT_NE(e.find("header line 5 (COUNT): field 'stamp': COUNT '1junk'"), std::string::npos) << e;
-  e = error_of_pcd(one_point_ascii(std::string(kAsciiHeader) + "SIZE 4\n"));
+  e = test::pass_read_error(one_point_ascii(std::string(kAsciiHeader) + "SIZE 4\n"));
   EXPECT_NE(e.find("a second SIZE line"), std::string::npos) << e;
 }
 
 TEST(ReadersHardening, PcdDataIsStrict) {
   // A NUL in an ascii data line used to end the line silently.
-  std::string e = error_of_pcd(std::string(kAsciiHeader) + "WIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n" + kRow +
+  std::string e = test::pass_read_error(std::string(kAsciiHeader) + "WIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n" + kRow +
                                std::string(" 7\0 junk\n", 9));
   EXPECT_NE(e.find("p.pcd: data line 1: holds a NUL byte"), std::string::npos) << e;
   // Junk suffixes and values a float32 cannot hold.
   for (const char* bad : {"1.5junk", "1e39", "1e999", "-4e38"}) {
     std::string row = kRow;
     row.replace(row.find("1.5"), 3, bad);
-    e = error_of_pcd(std::string(kAsciiHeader) + "WIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n" + row + "\n");
+    e = test::pass_read_error(std::string(kAsciiHeader) + "WIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n" + row + "\n");
     EXPECT_NE(e.find(std::string("field 'range': '") + bad + "' is not a valid F4 value"), std::string::npos) << e;
   }
   // FLT_MAX as printed with 9 digits still reads.
   std::string row = kRow;
   row.replace(row.find("10 "), 3, "3.40282347e+38 ");
-  EXPECT_EQ(error_of_pcd(std::string(kAsciiHeader) + "WIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n" + row + "\n"), "(no error)");
+  EXPECT_EQ(test::pass_read_error(std::string(kAsciiHeader) + "WIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n" + row + "\n"), "(no error)");
   // Trailing bytes after binary_compressed data (a literal run of 32 bytes encodes one point).
   std::string body = std::string(kAsciiHeader) + "WIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA binary_compressed\n";
   const std::uint32_t csize = 33, usize = 32;
@@ -213,8 +202,8 @@ TEST(ReadersHardening, PcdDataIsStrict) {
   body.append(reinterpret_cast<const char*>(&usize), 4);
   body.push_back('\x1f');
   body.append(32, '\0');
-  EXPECT_EQ(error_of_pcd(body), "(no error)");
-  e = error_of_pcd(body + "junk");
+  EXPECT_EQ(test::pass_read_error(body), "(no error)");
+  e = test::pass_read_error(body + "junk");
   EXPECT_NE(e.find("p.pcd: binary_compressed: the file holds 4 bytes after the 33 compressed bytes"), std::string::npos) << e;
 }
 
