@@ -402,7 +402,7 @@ PcdTable read_pcd_unguarded(const std::string& path) {
       fail(path, "truncated: " + claims() + " but the " + std::to_string(avail) +
                      " bytes of ascii data cannot hold them");
     const auto data = read_range(path, h.data_offset, avail);
-    if (const void* nul = std::memchr(data.data(), '\0', data.size())) {
+    if (const void* nul = data.empty() ? nullptr : std::memchr(data.data(), '\0', data.size())) {
       const auto at = static_cast<std::size_t>(static_cast<const std::uint8_t*>(nul) - data.data());
       const auto line = 1 + std::count(data.begin(), data.begin() + static_cast<long>(at), '\n');
       fail(path, "data line " + std::to_string(line) + ": holds a NUL byte (binary data in an ascii PCD?)");
