@@ -236,6 +236,9 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
       for (const auto& f : st->products()) products.push_back(f);
     out.check_replaceable(products);  // before the work, not at the end
   }
+  // Every file a pipeline run may write: an earlier run's product that this run does not write
+  // (map.ot after write_ot: false, say) does not stay beside the new set.
+  out.owns({"returns.pcd", "cloud.pcd", "report.json", "elevation.tif", "elevation.png", "map.bt", "map.ot"});
   io::ReturnsWriter returns(out.staged_path("returns.pcd"), context_.map_origin);
   io::CloudWriter cloud(out.staged_path("cloud.pcd"), context_.map_origin);
   const std::string report_tmp = out.staged_path("report.json");
@@ -448,10 +451,12 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   sum.outputs = out.final_paths();
   sum.seconds = seconds_since(t_run);
   {
-    std::FILE* f = std::fopen(report_tmp.c_str(), "wb");
     const std::string js = report_json(cfg, sum);
-    if (!f || std::fwrite(js.data(), 1, js.size(), f) != js.size() || std::fclose(f) != 0)
-      throw OutputError(out.final_path("report.json") + ": cannot write the report (" + std::strerror(errno) + ")");
+    std::FILE* f = std::fopen(report_tmp.c_str(), "wb");
+    int err = f ? 0 : errno;
+    if (f && std::fwrite(js.data(), 1, js.size(), f) != js.size()) err = errno ? errno : EIO;
+    if (f && std::fclose(f) != 0 && !err) err = errno;  // closed on every path
+    if (err) throw OutputError(out.final_path("report.json") + ": cannot write the report (" + std::strerror(err) + ")");
   }
   out.commit();
   return sum;

@@ -317,3 +317,41 @@ TEST(CommitHardeningCli, UnwritableOutputsExitWith4InEverySubcommand) {
     fs::permissions(d.dir + "/ro", fs::perms::owner_all);
   }
 }
+
+// The new set is complete and only new: a product that an earlier run wrote and this run does not
+// (map.ot once write_ot is off, elevation.png once png is off) does not stay beside the new files;
+// the user's own files do.
+TEST(CommitHardeningCli, AnEarlierRunsProductThatThisRunDoesNotWriteDoesNotStay) {
+  Data d = make_data("  - type: fuse_elevation\n  - type: fuse_octomap\n    write_ot: true\n");
+  ASSERT_EQ(run_cli({"run", d.yaml, "-q"}).exit_code, 0);
+  ASSERT_TRUE(fs::exists(d.out + "/map.ot") && fs::exists(d.out + "/elevation.png"));
+  test::write_text(d.out + "/notes.txt", "mine");
+  const auto r = run_cli({"run", d.yaml, "-q", "--set", "stages.fuse_octomap.write_ot=false", "--set",
+                          "stages.fuse_elevation.png=false"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(d.out + "/map.bt") && fs::exists(d.out + "/elevation.tif"));
+  EXPECT_FALSE(fs::exists(d.out + "/map.ot"));
+  EXPECT_FALSE(fs::exists(d.out + "/elevation.png"));
+  EXPECT_EQ(test::read_text(d.out + "/notes.txt"), "mine");
+}
+
+// An output folder that is a mount point (a container volume, say) cannot be swapped: refused
+// before any work with exit 4 and the fix (a folder inside it), its contents untouched. Needs the
+// right to mount a tmpfs (root); skipped elsewhere.
+TEST(CommitHardeningCli, AnOutputFolderThatIsAMountPointIsRefusedBeforeTheWork) {
+  Data d = make_data("  - type: fuse_elevation\n");
+  fs::create_directories(d.out);
+  if (std::system(("mount -t tmpfs pcdp-test " + d.out + " 2>/dev/null").c_str()) != 0)
+    GTEST_SKIP() << "cannot mount a tmpfs here";
+  test::write_text(d.out + "/keep.txt", "volume content");
+  const auto r = run_cli({"run", d.yaml, "-q"});
+  EXPECT_EQ(r.exit_code, 4) << r.err;
+  EXPECT_NE(r.err.find("is a mount point"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("/run"), std::string::npos) << r.err;
+  EXPECT_EQ(test::read_text(d.out + "/keep.txt"), "volume content");
+  EXPECT_FALSE(fs::exists(d.out + "/returns.pcd"));
+  // A folder inside the mount commits as usual.
+  EXPECT_EQ(run_cli({"run", d.yaml, "-q", "--output-dir", d.out + "/run"}).exit_code, 0);
+  EXPECT_TRUE(fs::exists(d.out + "/run/returns.pcd"));
+  EXPECT_EQ(std::system(("umount " + d.out).c_str()), 0);
+}

@@ -2,6 +2,7 @@
 // the process is killed at every step; after each, the output folder holds exactly the complete
 // old set or the complete new set (file lists and contents), and the next run removes the
 // leftovers. Also: the lock, the signal cleanup, the single-file sets (merge, clean-cloud).
+#include <algorithm>
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -186,12 +187,14 @@ TEST(CommitHardening, TemporariesOfKilledRunsOfEarlierVersionsAreNotCarriedOver)
   for (const char* n : {".returns.pcd.tmp-123.body", ".report.json.tmp-9", ".elevation.tif.tmp-77.tmp-write.tif",
                         ".elevation.png.tmp-77.tmp-png"})
     test::write_text(out + "/" + n, "junk");
-  test::write_text(out + "/.my.tmp-notes", "the user's");  // not a pid: kept
+  test::write_text(out + "/.my.tmp-notes", "the user's");    // not a pid: kept
+  test::write_text(out + "/.notes.tmp-2024", "the user's");  // not a product's temporary: kept
   run_commit(out);
   std::vector<std::string> hidden;
   for (const auto& e : fs::directory_iterator(out))
     if (e.path().filename().string()[0] == '.') hidden.push_back(e.path().filename().string());
-  EXPECT_EQ(hidden, std::vector<std::string>{".my.tmp-notes"});
+  std::sort(hidden.begin(), hidden.end());
+  EXPECT_EQ(hidden, (std::vector<std::string>{".my.tmp-notes", ".notes.tmp-2024"}));
 }
 
 std::string g_late_file;

@@ -56,10 +56,12 @@ Pass point_pass(double x, double y, double z) {
 TEST(Georef, OriginIsZeroNearZeroAndARoundNumberFarAway) {
   EXPECT_TRUE(choose_map_origin(PoseTrack{}).isZero());
   // Local frames, the simulator, the sample: the origin stays 0 (outputs as without an origin).
-  EXPECT_TRUE(choose_map_origin(track({{-3999.0, 12.0, 0.4}, {3999.0, -3999.0, 3999.0}})).isZero());
+  EXPECT_TRUE(choose_map_origin(track({{-999.0, 12.0, 0.4}, {999.0, -999.0, 999.0}})).isZero());
   // UTM: the bounding box's centre, each axis rounded to a whole kilometre (z 100 m rounds to 0).
   const Eigen::Vector3d o = choose_map_origin(track({{500123.4, 5300490.0, 100.0}, {500300.0, 5300700.0, 104.0}}));
   EXPECT_EQ(o, Eigen::Vector3d(500000.0, 5301000.0, 0.0));
+  // A local track driving 3.5 km from 0 gets a centred origin: the OctoMap's keys reach +-3.3 km.
+  EXPECT_EQ(choose_map_origin(track({{0.0, 0.0, 0.0}, {3500.0, 10.0, 2.0}})), Eigen::Vector3d(2000.0, 0.0, 0.0));
   // Exactly representable in float32.
   for (int a = 0; a < 3; ++a) EXPECT_EQ(static_cast<double>(static_cast<float>(o[a])), o[a]);
   // One axis far is enough; the others round too.

@@ -20,8 +20,10 @@
 
 namespace pcdp {
 
-/// Poses within this of 0 on every axis (m) keep the origin at 0.
-inline constexpr double kNearZero = 4000.0;
+/// Poses within this of 0 on every axis (m) keep the origin at 0. Well inside the OctoMap's key
+/// reach around the origin (+-3,276 m at 0.1 m leaves, +-1,638 m at 0.05 m), so that a track
+/// that starts at 0 and drives a few km gets a centred origin rather than rays beyond the keys.
+inline constexpr double kNearZero = 1000.0;
 /// The origin's axes are multiples of this (m).
 inline constexpr double kOriginStep = 1000.0;
 /// float32 keeps a step of at most 1 mm (2^-10 m) below 2^14 m: products keep 1 mm within this

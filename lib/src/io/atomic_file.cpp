@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <algorithm>
 #include <cerrno>
 #include <csignal>
 #include <cstdio>
@@ -181,6 +182,17 @@ bool exchange_unsupported(int e) { return e == EINVAL || e == ENOSYS || e == EOP
 
 std::string pid_text() { return std::to_string(::getpid()); }
 
+/// True when `p` is the root of a mount (another filesystem, a bind mount or a btrfs subvolume
+/// root): it cannot be renamed, and its contents belong to that mount.
+bool is_mount_root(const fs::path& p) {
+  struct statx sx {};
+  if (::statx(AT_FDCWD, p.c_str(), AT_SYMLINK_NOFOLLOW, STATX_BASIC_STATS, &sx) == 0 &&
+      (sx.stx_attributes_mask & STATX_ATTR_MOUNT_ROOT))
+    return (sx.stx_attributes & STATX_ATTR_MOUNT_ROOT) != 0;
+  struct stat me {}, up {};  // kernels before 5.8: a change of device
+  return ::lstat(p.c_str(), &me) == 0 && ::stat(p.parent_path().c_str(), &up) == 0 && me.st_dev != up.st_dev;
+}
+
 /// `<parent>/.<name>.pcdp-<what>`
 std::string beside(const fs::path& target, const std::string& what) {
   return (target.parent_path() / ("." + target.filename().string() + ".pcdp-" + what)).string();
@@ -217,8 +229,7 @@ int carry_over(Steps& st, const fs::path& src, const fs::path& dst, std::string&
     fs::copy_symlink(src, dst, ec);
   } else if (fs::is_directory(s)) {
     // A filesystem mounted inside the output folder is not copied (nor later deleted with the old set).
-    struct stat me {}, up {};
-    if (::stat(src.c_str(), &me) == 0 && ::stat(src.parent_path().c_str(), &up) == 0 && me.st_dev != up.st_dev) {
+    if (is_mount_root(src)) {
       why = src.string() + " is a mount point: it cannot be carried over to the new set (unmount it or write elsewhere)";
       return EXDEV;
     }
@@ -260,6 +271,10 @@ bool legacy_temporary(const std::string& n) {
   }
   const auto at = base.rfind(".tmp-");
   if (at == std::string::npos || at == 0 || at + 5 == base.size()) return false;
+  // Only temporaries of a product name ('.notes.tmp-2024' is a user's file).
+  static const std::set<std::string> kProducts = {"returns.pcd", "cloud.pcd", "report.json", "elevation.tif",
+                                                  "elevation.png", "map.bt",    "map.ot"};
+  if (!kProducts.count(base.substr(1, at - 1))) return false;
   for (std::size_t i = at + 5; i < base.size(); ++i)
     if (base[i] < '0' || base[i] > '9') return false;
   return true;
@@ -358,6 +373,11 @@ StagedOutputs::StagedOutputs(std::string dir) : dir_(std::move(dir)) {
     }
     if (!fs::is_directory(t.parent_path(), ec))
       throw OutputError("output_dir '" + dir_ + "': " + t.parent_path().string() + " is not a folder");
+    if (fs::is_directory(fs::symlink_status(t, ec)) && is_mount_root(t))
+      throw OutputError("output_dir '" + dir_ + "' is a mount point (a volume, or a filesystem's root): outputs are "
+                        "committed by swapping the folder with a complete new one beside it, which a mount point "
+                        "cannot be; write into a folder inside it instead (e.g. --output-dir " +
+                        (fs::path(dir_) / "run").string() + ")");
     lock_ = std::make_unique<OutputLock>(target_);
     const fs::file_status st = fs::symlink_status(t, ec);
     if (fs::exists(st) && !fs::is_directory(st))
@@ -451,7 +471,7 @@ void StagedOutputs::commit() {
     if (::stat(target_.c_str(), &s) == 0) ::chmod(staging_.c_str(), s.st_mode & 07777);
     for (const auto& e : fs::directory_iterator(t, ec)) {
       const std::string n = e.path().filename().string();
-      if (products.count(n) || legacy_temporary(n)) continue;
+      if (products.count(n) || legacy_temporary(n) || std::count(owned_.begin(), owned_.end(), n)) continue;
       std::string why;
       if (const int r = carry_over(st, e.path(), stage / n, why)) fail(why, r);
     }
@@ -483,7 +503,9 @@ void StagedOutputs::commit() {
       // Entries the user added to the old folder while the run carried it over: moved along.
       for (const auto& e : fs::directory_iterator(old_set, ec)) {
         const std::string n = e.path().filename().string();
-        if (products.count(n) || legacy_temporary(n) || fs::exists(fs::symlink_status(t / n, ec))) continue;
+        if (products.count(n) || legacy_temporary(n) || std::count(owned_.begin(), owned_.end(), n) ||
+            fs::exists(fs::symlink_status(t / n, ec)))
+          continue;
         if (st.next("move late entry") == 0) std::rename(e.path().c_str(), (t / n).c_str());
       }
       ec.clear();

@@ -65,6 +65,10 @@ class StagedOutputs final : public OutputSink {
   void check_replaceable(const std::vector<std::string>& filenames) const;
   /// `<staging>/<filename>`; a name given twice is a bug (std::logic_error).
   std::string staged_path(const std::string& filename) override;
+  /// Names this command owns in the folder (every product it may write, whether or not this run
+  /// writes it): the old folder's entries of these names are not carried over to the new set, so a
+  /// run that no longer writes map.ot (say) leaves no earlier map.ot beside its new map.bt.
+  void owns(std::vector<std::string> names) { owned_ = std::move(names); }
   std::string final_path(const std::string& filename) const;
   /// The final paths of everything staged so far.
   std::vector<std::string> final_paths() const;
@@ -81,6 +85,7 @@ class StagedOutputs final : public OutputSink {
   std::vector<std::string> created_parents_;  // innermost last
   std::unique_ptr<OutputLock> lock_;
   std::vector<std::string> names_;
+  std::vector<std::string> owned_;
   int slot_ = -1;  // in the signal cleanup table
   bool committed_ = false;
 };
