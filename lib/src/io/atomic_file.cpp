@@ -447,6 +447,17 @@ std::vector<std::string> StagedOutputs::final_paths() const {
 }
 
 void StagedOutputs::commit() {
+  // A folder that cannot be listed midway (std::filesystem throws from an iterator's increment) is
+  // an output problem like any other step's failure, never an internal error.
+  try {
+    commit_steps();
+  } catch (const fs::filesystem_error& e) {
+    throw OutputError("output_dir '" + dir_ + "': " + e.what() +
+                      (committed_ ? "; the new outputs are in place" : "; the folder keeps its earlier contents"));
+  }
+}
+
+void StagedOutputs::commit_steps() {
   Steps st;
   std::error_code ec;
   const fs::path t(target_), stage(staging_);

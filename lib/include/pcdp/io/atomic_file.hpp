@@ -86,6 +86,7 @@ class StagedOutputs final : public OutputSink {
   std::unique_ptr<OutputLock> lock_;
   std::vector<std::string> names_;
   std::vector<std::string> owned_;
+  void commit_steps();
   int slot_ = -1;  // in the signal cleanup table
   bool committed_ = false;
 };
