@@ -396,7 +396,10 @@ int cmd_error_budget(const RunArgs& a, const std::string& svg, const std::string
   };
   std::printf("\nyour sensor (%s): 1-sigma 3-D error of a point straight ahead, by source (mm)\n", a.pipeline.c_str());
   std::printf("%8s %10s %10s %10s %12s %10s %10s\n", "range m", "range", "bearing", "encoder", "position", "rpy", "total");
-  io::PlotSeries user{"your sensor (1 sigma)", {}, "#000000", true};
+  // The user's curve: drawn last (on top), solid black and thicker than the formula's, with its
+  // value at 30 m beside its end; the log axis keeps millimetres readable beside metres.
+  io::PlotSeries user{"your sensor (1 sigma)", {}, "#000000", false};
+  user.width = 3.5;
   for (double r : ranges) {
     double e[6];
     for (int k = 0; k < 6; ++k)
@@ -414,17 +417,21 @@ int cmd_error_budget(const RunArgs& a, const std::string& svg, const std::string
   }
   if (!svg.empty()) {
     io::PlotSpec spec;
-    spec.title = "Position error against range and orientation error (Broten & Collier Fig. 22)";
+    spec.title = "Position error against range: orientation error (Broten & Collier Fig. 22) and your sensor";
     spec.xlabel = "range (m)";
-    spec.ylabel = "3-D position error (m)";
+    spec.ylabel = "3-D position error (m, log scale)";
+    spec.log_y = true;
     const char* colors[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b"};
     for (int d = 1; d <= 6; ++d) {
       io::PlotSeries s{std::to_string(d) + " deg", {}, colors[d - 1], false};
-      for (double r = 0; r <= 30.0; r += 0.5) s.points.emplace_back(r, broten_collier_orientation_error(r, d * kRad));
+      for (double r = 0.5; r <= 30.0; r += 0.5) s.points.emplace_back(r, broten_collier_orientation_error(r, d * kRad));
       spec.series.push_back(s);
     }
     for (double r = 0.5; r <= 30.0; r += 0.5)
       user.points.emplace_back(r, std::sqrt(point_covariance(r, 0.0, 0.0, T_V_N, {}, cfg.rpy_order, all).trace()));
+    char note[64];
+    std::snprintf(note, sizeof note, "%.0f mm at %.0f m", user.points.back().second * 1000, user.points.back().first);
+    user.end_note = note;
     spec.series.push_back(user);
     io::write_file_atomic(svg, io::svg_line_plot(spec));
     std::printf("written: %s\n", svg.c_str());
