@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "io/elevation_png.hpp"
 #include "pcdp/elevation.hpp"
 #include "pcdp/errors.hpp"
 #include "pcdp/options.hpp"
@@ -259,9 +260,8 @@ TEST(Elevation, GeoTiffStripsHoldAtLeast64KiBOfABand) {
 }
 
 TEST(Elevation, PngShowsTheGridNorthUpAndFailsWithoutLeavingAFile) {
-  // A plane rising eastwards, 40 x 20 cells of 0.5 m, with one empty cell. The picture is the map
-  // at 8 pixels a cell (900 / 40 capped at 8) inside a 10-pixel margin, plus the colour bar's 130
-  // pixels to the right and the scale bar's 60 below.
+  // A plane rising eastwards, 40 x 20 cells of 0.5 m, with one empty cell. The map is drawn at 8
+  // pixels a cell (900 / 40 capped at 8), where the picture's layout says.
   ElevationGrid g(0.5, 0.05);
   for (int ix = 0; ix < 40; ++ix)
     for (int iy = 0; iy < 20; ++iy)
@@ -276,10 +276,15 @@ TEST(Elevation, PngShowsTheGridNorthUpAndFailsWithoutLeavingAFile) {
   img.format = PNG_FORMAT_RGB;
   std::vector<std::uint8_t> px(PNG_IMAGE_SIZE(img));
   ASSERT_TRUE(png_image_finish_read(&img, nullptr, px.data(), 0, nullptr)) << img.message;
-  ASSERT_EQ(img.width, 40u * 8 + 130);
-  ASSERT_EQ(img.height, 20u * 8 + 60);
+  const io::detail::ElevationPicture pic = io::detail::render_elevation(g);
+  ASSERT_EQ(img.width, static_cast<unsigned>(pic.width));
+  ASSERT_EQ(img.height, static_cast<unsigned>(pic.height));
+  ASSERT_EQ(pic.scale, 8);
+  ASSERT_EQ(pic.map_width, 40 * 8);
+  ASSERT_EQ(pic.map_height, 20 * 8);
   const auto at = [&](int col, int row, int ch) {  // centre pixel of a cell, north row first
-    return px[3 * (static_cast<std::size_t>(row * 8 + 14) * img.width + static_cast<std::size_t>(col * 8 + 14)) + static_cast<std::size_t>(ch)];
+    return px[3 * (static_cast<std::size_t>(pic.cell_y(19 - row)) * img.width + static_cast<std::size_t>(pic.cell_x(col))) +
+              static_cast<std::size_t>(ch)];
   };
   // The empty cell (ix 10, iy 15: row 19 - 15 = 4 from the top) is the no-data grey.
   for (int ch = 0; ch < 3; ++ch) EXPECT_EQ(at(10, 4, ch), 225);

@@ -288,7 +288,7 @@ ElevationPicture render_elevation(const ElevationGrid& grid) {
   const double west = static_cast<double>(ix0) * res, north = static_cast<double>(iy1 + 1) * res;
   const double east = west + mapw / ppm, south = north - maph / ppm;
   // Ticks every `step` map metres (1, 2 or 5 x 10^k), the labels at least two characters apart.
-  double step = nice_at_least(80.0 / ppm);
+  double step = nice_at_least(100.0 / ppm);
   for (int guard = 0; guard < 64; ++guard) {
     const int d = decimals_of(step);
     int widest = 0;
@@ -330,7 +330,7 @@ ElevationPicture render_elevation(const ElevationGrid& grid) {
   const int bar_h = std::max(100, maph - 2 * (tri + 2));
   const int bar_label_x = bar_left + bar_w + 4 + 6;
   // The rows under the map: easting labels, the axis title, the scale bar, the legend.
-  const int row_ticks = T + maph + 1 + tick_len + 4;
+  const int row_ticks = T + maph + 1 + tick_len + 6;
   const int row_title = row_ticks + kLine + 6;
   const int row_scale = row_title + kLine + 12;
   const int row_legend = row_scale + kLine + 12;
@@ -344,8 +344,8 @@ ElevationPicture render_elevation(const ElevationGrid& grid) {
   const int bar_bottom = bar_top + bar_h - 1;
   const auto y_of = [&](double v) { return bar_top + static_cast<int>(std::lround((hi - v) / (hi - lo) * (bar_h - 1))); };
   if (pic.bar == Bar::kRamp) {
-    const double zstep = nice_at_least((hi - lo) / std::max(2, bar_h / 50));
-    const int td = std::min(4, decimals_of(zstep)), zd = std::max(2, td);  // ticks; ends and extremes to the cm
+    const double zstep = nice_at_least((hi - lo) / std::max(2, bar_h / 70));
+    const int zd = std::min(4, std::max(2, decimals_of(zstep)));  // at least to the cm
     // The ends say what they are: the true extreme, or the percentile the colours clip at (the
     // triangle beyond it gives the extreme).
     // The end labels sit just inside the bar's ends (their ticks at the ends), those of the
@@ -356,7 +356,7 @@ ElevationPicture render_elevation(const ElevationGrid& grid) {
     if (pic.clipped_low) bar_labels.push_back({"min " + fixed(zmin, zd), -1, bar_bottom + 2 + tri / 2});
     for (double k = std::ceil(lo / zstep); k * zstep < hi; ++k) {
       const int y = y_of(k * zstep);
-      if (y - bar_top > kLine + 8 && bar_bottom - y > kLine + 8) bar_labels.push_back({fixed(k * zstep, td), y, y});
+      if (y - bar_top > kLine + 8 && bar_bottom - y > kLine + 8) bar_labels.push_back({fixed(k * zstep, zd), y, y});
     }
   } else if (pic.bar == Bar::kFlat) {
     bar_labels.push_back({"flat: z = " + fixed(0.5 * (zmin + zmax), 3) + " m", -1, bar_top + bar_h / 2});

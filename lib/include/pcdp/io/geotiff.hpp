@@ -61,8 +61,11 @@ ElevationGrid read_elevation_geotiff(const std::string& path);
 void merge_elevation_geotiff(ElevationGrid& grid, const std::string& path,
                              const std::string& grid_name = "the grid");
 
-/// The picture a person reads: elevation in colour (perceptual ramp) with hillshade, unobserved
-/// cells in light grey, a colour bar with heights and a scale bar. 8-bit RGB PNG through libpng's
+/// The picture a person reads (lib/src/io/elevation_png.cpp, docs/fusion.md): elevation in colour
+/// (perceptual ramp, 2nd-98th percentile) with hillshade, eastings and northings in map metres on
+/// the axes, a colour bar that shows the clipping (the true min/max beyond triangles), "flat" or
+/// "no data" where there is no range, unseen and too-few-returns cells in colours of their own
+/// with a legend, and a scale bar. 8-bit RGB PNG through libpng's
 /// simplified writer (no row filters, zlib level 3: a preview). Written to a temporary name, then
 /// renamed; throws std::runtime_error naming the path. A grid more than 4,096 cells across is
 /// drawn downsampled, at most 2,048 pixels across: each pixel the mean surface of f x f cells, f
