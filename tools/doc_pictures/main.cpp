@@ -1,6 +1,12 @@
 // Regenerates the pictures of docs/ that come from real data:
 //   ./build/tools/pcdp_doc_pictures ../shared docs/img
 // (Kept out of the CLI: it is documentation tooling, not a user command.)
+// The other pictures of docs/img are the CLI's own products, copied:
+//   sample_elevation.png        run pipelines/nodding_terrain.yaml  (its elevation.png)
+//   kurt3d_elevation.png        run pipelines/kurt3d.yaml           (after its "# prepare:" line)
+//   octomap_scan_elevation.png  run pipelines/octomap_scan.yaml     (after its "# prepare:" line)
+//   error_budget.svg            error-budget pipelines/nodding_terrain.yaml --svg docs/img/error_budget.svg
+//   amplitude_fig13_*.svg       amplitude-model (docs/occlusion.md)
 #include <cmath>
 #include <cstdio>
 #include <fstream>
