@@ -544,14 +544,14 @@ PipelineConfig build(YAML::Node root, Context& ctx, const LoadOptions& opts) {
   // crs: the map frame's coordinate reference system, written as elevation.tif's GeoKeys.
   if (root["crs"] && !root["crs"].IsNull()) {
     const std::string v = scalar_of(ctx, "crs", root["crs"], "key");
+    if (v.empty()) fail(ctx.where("crs", root["crs"]), "'crs' is empty (give EPSG:<code>, or leave the key out)");
     try {
       cfg.crs = io::normalize_crs(v);
     } catch (const std::invalid_argument& e) {
       fail(ctx.where("crs", root["crs"]), std::string("crs = ") + e.what() +
-                                              " (crs is EPSG:<code> or the WKT of a projected CRS in metres, "
-                                              "e.g. EPSG:32632)");
+                                              " (crs is EPSG:<code> of a projected CRS in metres, e.g. EPSG:32632, "
+                                              "or its WKT)");
     }
-    if (v.empty()) fail(ctx.where("crs", root["crs"]), "'crs' is empty (give EPSG:<code> or WKT, or leave the key out)");
   }
 
   if (root["rpy_order"]) {

@@ -94,7 +94,12 @@ std::string normalize_crs(const std::string& text) {
   if (!code.empty() && code.size() <= 5 && code.find_first_not_of("0123456789") == std::string::npos &&
       std::stoi(code) >= 1 && std::stoi(code) <= 32766)
     return "EPSG:" + code;
-  return text;
+  // libgeotiff writes GeoKeys from codes, not from WKT (that translation lives in GDAL), and a CRS
+  // given only as text in GTCitationGeoKey reads back in GDAL as an unknown or engineering CRS:
+  // a file that would mislead its reader is refused here.
+  throw std::invalid_argument("the WKT CRS '" + std::string(proj_get_name(crs.get())) +
+                              "' has no EPSG code (PROJ identifies none with full confidence): elevation.tif states its "
+                              "CRS as an EPSG code in its GeoKeys");
 }
 
 namespace detail {
@@ -106,8 +111,7 @@ GeoKeys crs_geokeys(const std::string& crs) {
   if (const int code = epsg_code(crs)) {
     k.epsg = code;
   } else {
-    k.epsg = KvUserDefined;
-    k.citation = crs;
+    throw std::invalid_argument("crs '" + crs + "' is not EPSG:<code> (normalize_crs() makes it one)");
   }
   return k;
 }

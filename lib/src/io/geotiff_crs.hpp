@@ -9,8 +9,8 @@
 namespace pcdp::io::detail {
 
 /// The GeoKeys of a normalised CRS (normalize_crs()): "" none; "EPSG:N" a projected CRS
-/// (GTModelTypeGeoKey 1, ProjectedCSTypeGeoKey N); WKT a user-defined projected CRS
-/// (ProjectedCSTypeGeoKey 32767) with the WKT in GTCitationGeoKey.
+/// (GTModelTypeGeoKey 1, GTRasterTypeGeoKey PixelIsArea, ProjectedCSTypeGeoKey N). Anything
+/// else: std::invalid_argument.
 GeoKeys crs_geokeys(const std::string& crs);
 /// The CRS that GeoKeys state, as normalize_crs() writes it: "EPSG:N" for an EPSG code
 /// (projected or geographic), the citation of a user-defined CRS, "" when there are no GeoKeys.

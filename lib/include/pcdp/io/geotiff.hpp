@@ -41,9 +41,11 @@ std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string
 std::string elevation_state_path(const std::string& path);
 
 /// The pipeline key `crs`, checked against PROJ's database: "EPSG:N" (any case of EPSG) naming a
-/// projected CRS in metres, or WKT (1 or 2) of one. Returns "EPSG:N" for either when the CRS has
-/// an EPSG code (a WKT that PROJ identifies with full confidence), else the WKT as given; "" for
-/// "". Throws std::invalid_argument stating the rule (the caller names the key).
+/// projected CRS in metres, or WKT (1 or 2) of one that PROJ identifies with an EPSG code with
+/// full confidence. Returns "EPSG:N"; "" for "". elevation.tif states its CRS as that code in its
+/// GeoKeys (libgeotiff writes GeoKeys from codes; a WKT without a code would read back in GDAL as
+/// an unknown CRS, so it is refused). Throws std::invalid_argument stating the rule (the caller
+/// names the key).
 std::string normalize_crs(const std::string& text);
 
 /// The CRS of a grid (read from its merge state, or from the grid of an earlier version): "EPSG:N",
