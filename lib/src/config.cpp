@@ -16,6 +16,7 @@
 #include <sstream>
 
 #include "pcdp/errors.hpp"
+#include "pcdp/io/geotiff.hpp"
 #include "pcdp/io/input_file.hpp"
 #include "pcdp/stage.hpp"
 
@@ -112,7 +113,7 @@ Override parse_override(const std::string& text) {
 namespace {
 
 const std::vector<std::string> kTopKeys = {"description", "rpy_order",  "input",  "output_dir",        "mount",
-                                           "sensor",      "pose_sigma", "stages", "allow_empty_output"};
+                                           "sensor",      "pose_sigma", "stages", "allow_empty_output", "crs"};
 const std::vector<std::string> kInputKeys = {"scans", "poses"};
 
 std::string node_kind(const YAML::Node& n) {
@@ -530,7 +531,7 @@ PipelineConfig build(YAML::Node root, Context& ctx, const LoadOptions& opts) {
     if (std::find(kTopKeys.begin(), kTopKeys.end(), k) == kTopKeys.end())
       fail(ctx.where(k, kv.first), "unknown key '" + k + "'" + did_you_mean(k, kTopKeys) +
                                        "; known keys: description, rpy_order, input, output_dir, "
-                                       "mount, sensor, pose_sigma, stages, allow_empty_output");
+                                       "mount, sensor, pose_sigma, stages, allow_empty_output, crs");
   }
   {
     YAML::Node top(YAML::NodeType::Map);
@@ -538,6 +539,19 @@ PipelineConfig build(YAML::Node root, Context& ctx, const LoadOptions& opts) {
       if (root[o.name]) top[o.name] = root[o.name];
     const OptionValues v = validate_block(ctx, top, top_level_schema(), "pipeline", "");
     cfg.allow_empty_output = v.get_bool("allow_empty_output");
+  }
+
+  // crs: the map frame's coordinate reference system, written as elevation.tif's GeoKeys.
+  if (root["crs"] && !root["crs"].IsNull()) {
+    const std::string v = scalar_of(ctx, "crs", root["crs"], "key");
+    if (v.empty()) fail(ctx.where("crs", root["crs"]), "'crs' is empty (give EPSG:<code>, or leave the key out)");
+    try {
+      cfg.crs = io::normalize_crs(v);
+    } catch (const std::invalid_argument& e) {
+      fail(ctx.where("crs", root["crs"]), std::string("crs = ") + e.what() +
+                                              " (crs is EPSG:<code> of a projected CRS in metres, e.g. EPSG:32632, "
+                                              "or its WKT)");
+    }
   }
 
   if (root["rpy_order"]) {

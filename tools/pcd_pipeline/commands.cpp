@@ -444,13 +444,20 @@ int cmd_merge(const std::vector<std::string>& inputs, const std::string& output,
   io::check_distinct_grids(inputs);  // the same grid twice would count its passes twice
   io::StagedFiles staged;  // checked and locked before the work; the .tif and the PNG committed as a set
   const std::string tif_tmp = staged.add("merge --output", output);
+  const std::string state_tmp = staged.add("merge --output (its merge state)", io::elevation_state_path(output));
   const std::string png_tmp = png.empty() ? std::string() : staged.add("merge --png", png);
+  // One CRS for all (checked before any cell is read); the merged grid keeps it.
+  const std::string crs = io::elevation_geotiff_crs(inputs[0]);
+  for (std::size_t k = 1; k < inputs.size(); ++k)
+    if (const std::string other = io::elevation_geotiff_crs(inputs[k]); other != crs)
+      throw InputError("merge: '" + inputs[0] + "' is in " + (crs.empty() ? "no CRS" : crs) + " and '" + inputs[k] +
+                       "' in " + (other.empty() ? "no CRS" : other) + ": grids merge only in the same CRS");
   // The first grid sets the grid; the others are read into it a strip of rows at a time.
   ElevationGrid grid = io::read_elevation_geotiff(inputs[0]);
   for (std::size_t k = 1; k < inputs.size(); ++k) io::merge_elevation_geotiff(grid, inputs[k], inputs[0]);
   // The GeoTIFF's bands are compressed on `threads` threads; the file is the same whatever the count.
   const auto share = WorkShare::threads(threads_or_cores(threads));
-  io::write_elevation_geotiff(grid, tif_tmp, 1, *share);
+  io::write_elevation_geotiff(grid, tif_tmp, 1, *share, crs, state_tmp);
   if (!png.empty()) io::write_elevation_png(grid, png_tmp);
   staged.commit();
   std::printf("merged %zu grids -> %s (%zu cells)\n", inputs.size(), output.c_str(), grid.size());

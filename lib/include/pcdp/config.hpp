@@ -68,6 +68,9 @@ struct PipelineConfig {
   /// A run that keeps no return, or leaves most in-range returns without a pose, is a data error
   /// unless this is set (top-level key `allow_empty_output`, see top_level_schema()).
   bool allow_empty_output = false;
+  /// The map frame's coordinate reference system (top-level key `crs`), as io::normalize_crs()
+  /// returns it: "EPSG:N" or WKT; empty: none. Written as elevation.tif's GeoKeys.
+  std::string crs;
   /// Validated values of each fixed block ("sensor", "mount", "pose_sigma"), for the report.
   std::vector<std::pair<std::string, OptionValues>> blocks;
 };

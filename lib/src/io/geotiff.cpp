@@ -17,6 +17,7 @@
 #include "pcdp/errors.hpp"
 #include "pcdp/io/input_file.hpp"
 #include "pcdp/options.hpp"
+#include "geotiff_crs.hpp"
 #include "tiff_reader.hpp"
 #include "tiff_writer.hpp"
 
@@ -25,7 +26,14 @@ namespace pcdp::io {
 namespace {
 constexpr int kFixed = 6;  // elevation variance count min max passes
 constexpr int kPerBand = 4;  // index weight mean count, for each kept height band
-constexpr int kBands = kFixed + kPerBand * ElevationCell::kBands;
+constexpr int kBands = kFixed + kPerBand * ElevationCell::kBands;  // of the legacy file, and band_name()'s numbering
+constexpr int kUserBands = kFixed;  // elevation.tif: elevation variance count min max passes
+constexpr int kStateFirst = 2;      // the state file: band_name() 2 .. 21 (count min max passes, the height bands)
+constexpr int kStateBands = kBands - kStateFirst;
+constexpr const char* kUserContract =
+    "bands 1-5 per docs/data_contract.md, 6 passes; the merge state is the .state.tif file beside it";
+constexpr const char* kStateContract =
+    "merge state: 1 count, 2 min, 3 max, 4 passes, 5-20 the four highest height bands (index, weight, mean, count)";
 constexpr int kStripBytes = 64 * 1024;  // at least this much of a band per TIFF strip
 constexpr std::uint64_t kStripCells = std::uint64_t{1} << 22;  // larger rasters are written as sparse tiles
 constexpr int kTile = 256;
@@ -51,6 +59,20 @@ void check_elevation_extent(std::int64_t ix0, std::int64_t iy0, std::int64_t ix1
   }
 }
 
+std::string elevation_state_path(const std::string& path) {
+  const std::string ext = ".tif";
+  if (path.size() > ext.size() && path.compare(path.size() - ext.size(), ext.size(), ext) == 0)
+    return path.substr(0, path.size() - ext.size()) + ".state.tif";
+  return path + ".state.tif";
+}
+
+std::string elevation_geotiff_crs(const std::string& path) {
+  const std::string state = elevation_state_path(path);
+  std::error_code ec;
+  const detail::FloatTiffRows t(std::filesystem::exists(state, ec) ? state : path);
+  return detail::crs_of(t.info().geokeys);
+}
+
 namespace {
 std::string band_name(int b) {
   static const char* const fixed[kFixed] = {"elevation", "variance", "count", "min", "max", "passes"};
@@ -69,17 +91,21 @@ void rename_into_place(const std::string& tmp, const std::string& path) {
 }
 }  // namespace
 
-std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string& path, int deflate_level, WorkShare& share) {
+std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string& path, int deflate_level, WorkShare& share,
+                                   const std::string& crs, const std::string& state_path_in) {
   if (deflate_level < 1 || deflate_level > 12)
     throw std::invalid_argument("DEFLATE level " + std::to_string(deflate_level) + " is outside 1 .. 12");
+  const std::string state_path = state_path_in.empty() ? elevation_state_path(path) : state_path_in;
   std::int64_t ix0 = 0, iy0 = 0, ix1 = 0, iy1 = 0;
   if (!grid.bounds(ix0, iy0, ix1, iy1)) ix0 = iy0 = ix1 = iy1 = 0;
   check_elevation_extent(ix0, iy0, ix1, iy1, grid.resolution());
   const int nx = static_cast<int>(ix1 - ix0 + 1), ny = static_cast<int>(iy1 - iy0 + 1);
+  // Two files of the same raster: elevation.tif, the user's bands (1-6 of band_name()), and its
+  // merge state beside it (bands 3-22: count, min, max, passes and the four kept height bands).
   detail::FloatTiff t;
   t.width = nx;
   t.height = ny;
-  t.bands = kBands;
+  t.geokeys = detail::crs_geokeys(crs);
   // Strips of at least 64 KiB, not GDAL's default of about 8 KiB: every strip costs a compressor
   // set-up and a flush, and on the 8-pass bench grid (267 x 400 cells, 22 bands) the default's
   // 1,276 strips took 22 ms to write against 16 ms for 154 (GDAL's writer; the file 7 % smaller). Any TIFF
@@ -98,14 +124,15 @@ std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string
   char band[32], resolution[32];
   std::snprintf(band, sizeof band, "%.17g", grid.band());
   std::snprintf(resolution, sizeof resolution, "%.17g", res);
-  std::vector<std::string> names;
-  for (int b = 0; b < kBands; ++b) names.push_back(band_name(b));
-  t.gdal_metadata = detail::gdal_metadata(
-      {{"PCDP_BAND", band},
-       {"PCDP_CONTRACT", "bands 1-5 per DESIGN.md; 6 passes; 7-22 the four highest height bands (exact merge state)"},
-       {"PCDP_MIN_SUPPORT", std::to_string(grid.min_support())},
-       {"PCDP_RESOLUTION", resolution}},
-      names);
+  const auto metadata = [&](const std::string& contract, int first, int bands) {
+    std::vector<std::string> names;
+    for (int b = first; b < first + bands; ++b) names.push_back(band_name(b));
+    return detail::gdal_metadata({{"PCDP_BAND", band},
+                                  {"PCDP_CONTRACT", contract},
+                                  {"PCDP_MIN_SUPPORT", std::to_string(grid.min_support())},
+                                  {"PCDP_RESOLUTION", resolution}},
+                                 names);
+  };
   t.gdal_nodata = "nan";
 
   // The layout (docs/fusion.md): strips, as GDAL writes them, while the raster is at most
@@ -139,53 +166,70 @@ std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string
   }
 
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  // Bands in groups that one visit of the cells fills: the six of docs/data_contract.md and each height
-  // band's four. A cell spans several cache lines, so on a grid of two million cells one visit
-  // per band (22) took 44 % of the write, against 5 visits now. Each task holds one block of its
-  // group's planes.
-  t.groups.push_back(kFixed);
-  for (int k = 0; k < ElevationCell::kBands; ++k) t.groups.push_back(kPerBand);
-  std::size_t surfaces = 0;  // counted by the one task that fills the fixed bands
-  const auto fill = [&](int first, const detail::Block& blk, std::vector<std::vector<float>>& planes) {
-    if (t.tile && start[blk.index] == start[blk.index + 1]) return false;  // an empty tile: not stored
-    for (auto& p : planes) std::fill(p.begin(), p.end(), nan);
-    const std::size_t k = first >= kFixed ? static_cast<std::size_t>((first - kFixed) / kPerBand) : 0;
-    bool any = false;
-    for (std::size_t i = start[blk.index]; i < start[blk.index + 1]; ++i) {
-      const ElevationCell& c = *refs[i].c;
-      const std::size_t at = (refs[i].row - static_cast<std::size_t>(blk.y0)) * static_cast<std::size_t>(blk.width) +
-                             (refs[i].col - static_cast<std::size_t>(blk.x0));
-      if (first >= kFixed) {
-        const HeightBand& hb = c.bands[k];
-        if (hb.empty()) continue;
-        planes[0][at] = static_cast<float>(hb.index);
-        planes[1][at] = static_cast<float>(hb.w);
-        planes[2][at] = static_cast<float>(hb.wz / hb.w);
-        planes[3][at] = static_cast<float>(hb.count);
+  // Bands in groups that one visit of the cells fills (band_name()'s numbering): 0-1 the surface,
+  // 2-5 the cell's count, min, max and passes, then each height band's four. A cell spans several
+  // cache lines, so on a grid of two million cells one visit per band (22) took 44 % of the
+  // write. Each task holds one block of its group's planes. `offset`: the file's first band.
+  std::size_t surfaces = 0;  // counted by the one task that fills the surface
+  const auto fill_from = [&](int offset) {
+    return [&, offset](int file_first, const detail::Block& blk, std::vector<std::vector<float>>& planes) {
+      const int first = file_first + offset;
+      if (t.tile && start[blk.index] == start[blk.index + 1]) return false;  // an empty tile: not stored
+      for (auto& p : planes) std::fill(p.begin(), p.end(), nan);
+      const std::size_t k = first >= kFixed ? static_cast<std::size_t>((first - kFixed) / kPerBand) : 0;
+      bool any = false;
+      for (std::size_t i = start[blk.index]; i < start[blk.index + 1]; ++i) {
+        const ElevationCell& c = *refs[i].c;
+        const std::size_t at = (refs[i].row - static_cast<std::size_t>(blk.y0)) * static_cast<std::size_t>(blk.width) +
+                               (refs[i].col - static_cast<std::size_t>(blk.x0));
+        if (first >= kFixed) {
+          const HeightBand& hb = c.bands[k];
+          if (hb.empty()) continue;
+          planes[0][at] = static_cast<float>(hb.index);
+          planes[1][at] = static_cast<float>(hb.w);
+          planes[2][at] = static_cast<float>(hb.wz / hb.w);
+          planes[3][at] = static_cast<float>(hb.count);
+          any = true;
+          continue;
+        }
+        if (first == 0) {
+          double e = 0, var = 0;
+          if (grid.surface(c, e, var)) {
+            planes[0][at] = static_cast<float>(e);
+            planes[1][at] = static_cast<float>(var);
+            ++surfaces;
+          }
+          any = true;
+          continue;
+        }
+        planes[0][at] = static_cast<float>(c.count);
+        planes[1][at] = c.zmin;
+        planes[2][at] = c.zmax;
+        planes[3][at] = static_cast<float>(c.passes);
         any = true;
-        continue;
       }
-      double e = 0, var = 0;
-      if (grid.surface(c, e, var)) {
-        planes[0][at] = static_cast<float>(e);
-        planes[1][at] = static_cast<float>(var);
-        ++surfaces;
-      }
-      planes[2][at] = static_cast<float>(c.count);
-      planes[3][at] = c.zmin;
-      planes[4][at] = c.zmax;
-      planes[5][at] = static_cast<float>(c.passes);
-      any = true;
-    }
-    return any;
+      return any;
+    };
   };
-  const std::string tmp = path + ".tmp-write.tif";
+  const std::string tmp = path + ".tmp-write.tif", state_tmp = state_path + ".tmp-write.tif";
   try {
-    detail::write_float_tiff_blocks(tmp, t, deflate_level, fill, share);
+    detail::FloatTiff user = t;
+    user.bands = kUserBands;
+    user.groups = {2, 4};
+    user.gdal_metadata = metadata(kUserContract, 0, kUserBands);
+    detail::write_float_tiff_blocks(tmp, user, deflate_level, fill_from(0), share);
+    detail::FloatTiff state = t;
+    state.bands = kStateBands;
+    state.groups.push_back(4);
+    for (int k = 0; k < ElevationCell::kBands; ++k) state.groups.push_back(kPerBand);
+    state.gdal_metadata = metadata(kStateContract, kStateFirst, kStateBands);
+    detail::write_float_tiff_blocks(state_tmp, state, deflate_level, fill_from(kStateFirst), share);
   } catch (...) {
     std::remove(tmp.c_str());
+    std::remove(state_tmp.c_str());
     throw;
   }
+  rename_into_place(state_tmp, state_path);
   rename_into_place(tmp, path);
   return surfaces;
 }
@@ -237,12 +281,21 @@ namespace {
 /// row of a block of each band, and every cell's state checked as it is read.
 class GridFile {
  public:
-  explicit GridFile(const std::string& path) : path_(path), tiff_(path) {
+  explicit GridFile(const std::string& path) : path_(state_file(path)), tiff_(path_) {
     const detail::FloatTiffInfo& t = tiff_.info();
-    if (t.bands != kBands || !t.georeferenced)
-      throw InputError(path + ": not an elevation grid of pcd_pipeline (needs its " + std::to_string(kBands) +
-                       " bands, its georeferencing and PCDP_* metadata to merge)");
-    const GridMetadata m = parse_grid_metadata(t.gdal_metadata, path);
+    // The merge state: elevation.state.tif beside the grid (20 bands), or a grid of the versions
+    // before 2026-11-25 that held its state itself (22 bands).
+    offset_ = t.bands == kStateBands ? kStateFirst : 0;
+    if (t.bands == kUserBands && path_ == path)
+      throw InputError(path + ": its merge state " + elevation_state_path(path) +
+                       " is missing (fuse_elevation and merge write it beside the grid; copy, convert or re-tile "
+                       "both files)");
+    if ((t.bands != kBands && t.bands != kStateBands) || !t.georeferenced)
+      throw InputError(path_ + ": not an elevation grid's merge state of pcd_pipeline (needs its " +
+                       std::to_string(kStateBands) + " bands (or the " + std::to_string(kBands) +
+                       " of a grid of earlier versions), its georeferencing and PCDP_* metadata to merge)");
+    crs_ = detail::crs_of(t.geokeys);
+    const GridMetadata m = parse_grid_metadata(t.gdal_metadata, path_);
     res_ = m.resolution;
     band_ = m.band;
     support_ = m.min_support;
@@ -250,14 +303,14 @@ class GridFile {
     // cells would otherwise land on another grid than the metadata's).
     for (int k = 0; k < 2; ++k)
       if (!(std::fabs(t.pixel_scale[k] - res_) <= 1e-9 * res_))
-        throw InputError(path + ": the GeoTIFF pixel scale (ModelPixelScaleTag) " + format_value(t.pixel_scale[0]) +
+        throw InputError(path_ + ": the GeoTIFF pixel scale (ModelPixelScaleTag) " + format_value(t.pixel_scale[0]) +
                          " x " + format_value(t.pixel_scale[1]) + " m disagrees with GDAL metadata item PCDP_RESOLUTION = " +
                          format_value(res_) + " m");
     // The raster's north-west corner, as GDAL's geotransform has it (pixel-is-area tie point).
     const double x0 = t.tiepoint[3] - t.tiepoint[0] * t.pixel_scale[0], y0 = t.tiepoint[4] + t.tiepoint[1] * t.pixel_scale[1];
     constexpr double kMaxIndex = 4.5e15;  // cell indices stay exact in a double, and far from overflow
     if (!(std::fabs(x0 / res_) < kMaxIndex) || !(std::fabs(y0 / res_) < kMaxIndex))
-      throw InputError(path + ": the raster's corner (" + std::to_string(x0) + ", " + std::to_string(y0) +
+      throw InputError(path_ + ": the raster's corner (" + std::to_string(x0) + ", " + std::to_string(y0) +
                        ") is not a finite position on its grid");
     ix0_ = std::llround(x0 / res_);
     iy1_ = std::llround(y0 / res_) - 1;
@@ -269,6 +322,10 @@ class GridFile {
   /// The absolute cell indices of the raster's north-west cell.
   std::int64_t corner_x() const { return ix0_; }
   std::int64_t corner_y() const { return iy1_; }
+  /// The file read: the state file beside the grid, or the grid itself (earlier versions).
+  const std::string& path() const { return path_; }
+  /// Its CRS as elevation_geotiff_crs() states it ("" none).
+  const std::string& crs() const { return crs_; }
 
   /// f(ix, iy, cell) for every cell that holds points, a block (strip or tile) at a time. Every
   /// cell's state is checked first (docs/fusion.md, "merge"): an InputError names the file, the
@@ -276,8 +333,16 @@ class GridFile {
   template <typename F>
   void for_each_cell(F f) {
     constexpr double kMaxCount = 4294967295.0, kMaxBand = 2147483647.0;
+    std::vector<std::vector<float>> full(kBands);
     tiff_.for_each_piece([&](const detail::FloatTiffPiece& p) {
-      const auto& v = p.bands;
+      // The bands by band_name()'s numbers; a state file has no surface: nodata.
+      const std::vector<std::vector<float>>* bands = &p.bands;
+      if (offset_ != 0) {
+        for (int b = 0; b < offset_; ++b) full[static_cast<std::size_t>(b)].assign(static_cast<std::size_t>(p.cols), std::numeric_limits<float>::quiet_NaN());
+        for (std::size_t b = 0; b < p.bands.size(); ++b) full[b + static_cast<std::size_t>(offset_)] = p.bands[b];
+        bands = &full;
+      }
+      const auto& v = *bands;
       for (int j = 0; j < p.cols; ++j) {
         const std::size_t i = static_cast<std::size_t>(j);
         const int row = p.row, col = p.col0 + j;
@@ -288,14 +353,14 @@ class GridFile {
         const auto whole = [&](int b, double lo, double hi) {
           const float x = v[static_cast<std::size_t>(b)][i];
           if (!(x >= lo && x <= hi) || x != std::floor(x))
-            bad("band " + std::to_string(b + 1) + " (" + band_name(b) + ") = " + val(b) + " is not a whole number in " +
+            bad("band " + std::to_string(file_band(b)) + " (" + band_name(b) + ") = " + val(b) + " is not a whole number in " +
                 format_value(lo) + " .. " + format_value(hi));
           return static_cast<double>(x);
         };
         if (std::isnan(v[2][i])) {  // unobserved: nodata in every band
-          for (int b = 0; b < kBands; ++b)
+          for (int b = offset_; b < kBands; ++b)
             if (!std::isnan(v[static_cast<std::size_t>(b)][i]))
-              bad("band " + std::to_string(b + 1) + " (" + band_name(b) + ") = " + val(b) +
+              bad("band " + std::to_string(file_band(b)) + " (" + band_name(b) + ") = " + val(b) +
                   ", but the count is nodata (an unobserved cell holds nothing)");
           continue;
         }
@@ -346,6 +411,17 @@ class GridFile {
   double res_ = 0, band_ = 0;
   std::uint32_t support_ = 0;
   std::int64_t ix0_ = 0, iy1_ = 0;
+  int offset_ = 0;  ///< band_name()'s number of the file's first band
+  std::string crs_;
+
+  /// The file that holds the merge state of the grid `path`.
+  static std::string state_file(const std::string& path) {
+    const std::string state = elevation_state_path(path);
+    std::error_code ec;
+    return std::filesystem::exists(state, ec) ? state : path;
+  }
+  /// The file's band number (1-based) of band_name()'s band b.
+  int file_band(int b) const { return b - offset_ + 1; }
 };
 }  // namespace
 
@@ -364,27 +440,27 @@ void merge_elevation_geotiff(ElevationGrid& grid, const std::string& path, const
   // The same tests as ElevationGrid::merge, before any cell is read: a mismatch leaves `grid` as it was.
   if (std::fabs(file.resolution() - grid.resolution()) > 1e-9 || std::fabs(file.band() - grid.band()) > 1e-9 ||
       file.min_support() != grid.min_support())
-    throw InputError(path + ": resolution " + format_value(file.resolution()) + " m, band " + format_value(file.band()) +
+    throw InputError(file.path() + ": resolution " + format_value(file.resolution()) + " m, band " + format_value(file.band()) +
                      " m and min_support " + std::to_string(file.min_support()) + " differ from " + grid_name + "'s (" +
                      format_value(grid.resolution()) + " m, " + format_value(grid.band()) + " m, " +
                      std::to_string(grid.min_support()) + "); grids merge only on the same grid");
   file.for_each_cell([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
     if (!grid.holds(ix, iy))
-      throw InputError(path + ": its cell at (" + format_value(static_cast<double>(ix) * grid.resolution()) + ", " +
+      throw InputError(file.path() + ": its cell at (" + format_value(static_cast<double>(ix) * grid.resolution()) + ", " +
                        format_value(static_cast<double>(iy) * grid.resolution()) + ") m lies more than 2^30 cells from " +
                        grid_name + "'s (" + format_value(static_cast<double>(grid.key_origin_x()) * grid.resolution()) +
                        ", " + format_value(static_cast<double>(grid.key_origin_y()) * grid.resolution()) +
                        ") m: grids this far apart do not merge into one raster");
     // Counts are 32-bit: a sum past that would wrap (the passes and bands' counts are at most it).
     if (const ElevationCell* have = grid.find(ix, iy); have && std::uint64_t{have->count} + c.count > 4294967295u)
-      throw InputError(path + ": the cell at grid index (" + std::to_string(ix) + ", " + std::to_string(iy) +
+      throw InputError(file.path() + ": the cell at grid index (" + std::to_string(ix) + ", " + std::to_string(iy) +
                        ") would hold " + std::to_string(std::uint64_t{have->count} + c.count) +
                        " points, more than a count can (4294967295)");
     grid.merge_cell(ix, iy, c);
   });
 }
 
-void check_distinct_grids(const std::vector<std::string>& paths) {
+void check_distinct_grids(const std::vector<std::string>& grids) {
   namespace fs = std::filesystem;
   // Size and a hash of the bytes, read in pieces; equal hashes are compared byte for byte.
   struct Seen {
@@ -407,6 +483,13 @@ void check_distinct_grids(const std::vector<std::string>& paths) {
     return std::equal(std::istreambuf_iterator<char>(x), {}, std::istreambuf_iterator<char>(y), {});
   };
   std::vector<Seen> seen;
+  // The files merge reads: each grid's merge state (or the grid itself, from earlier versions).
+  std::vector<std::string> paths;
+  for (const std::string& p : grids) {
+    const std::string state = elevation_state_path(p);
+    std::error_code ec;
+    paths.push_back(fs::exists(state, ec) ? state : p);
+  }
   for (std::size_t k = 0; k < paths.size(); ++k) {
     require_regular_file(paths[k], "GeoTIFF");  // before any read: a FIFO would block
     std::error_code ec;

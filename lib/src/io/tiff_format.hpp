@@ -1,27 +1,45 @@
-// What tiff_writer.cpp and tiff_reader.cpp share: the TIFF field types they use, and the one
-// host they serve. Both move float samples between memory and an "II" (little-endian) TIFF as
-// they lie, without swapping bytes.
+// What tiff_writer.cpp and tiff_reader.cpp share: a libtiff handle whose errors and warnings go
+// to the handle (not stderr), and the tags libtiff must know to read and write them: GeoTIFF's
+// (libgeotiff's tag extender) and GDAL's metadata and nodata.
 #pragma once
 
+#include <geotiff/xtiffio.h>  // TIFFTAG_GEOPIXELSCALE, TIFFTAG_GEOTIEPOINTS
+#include <tiffio.h>
+
 #include <cstdint>
+#include <memory>
+#include <string>
 
 #if defined(__BYTE_ORDER__) && __BYTE_ORDER__ != __ORDER_LITTLE_ENDIAN__
-#error "the TIFF writer and reader copy float samples as they lie in memory: little-endian hosts only"
+#error "the TIFF writer hands libtiff float samples as they lie in memory: little-endian hosts only"
 #endif
 
 namespace pcdp::io::detail {
-// TIFF 6.0 field types, and BigTIFF's 8-byte integer.
-constexpr std::uint16_t kTiffAscii = 2, kTiffShort = 3, kTiffLong = 4, kTiffDouble = 12, kTiffLong8 = 16;
 
-/// Bytes of one value of a field type (TIFF 6.0 section 2, BigTIFF's 16-18); 0 for a type
-/// neither knows, whose values a reader skips.
-constexpr int tiff_type_bytes(std::uint16_t type) {
-  switch (type) {
-    case 1: case 2: case 6: case 7: return 1;   // BYTE, ASCII, SBYTE, UNDEFINED
-    case 3: case 8: return 2;                    // SHORT, SSHORT
-    case 4: case 9: case 11: case 13: return 4;  // LONG, SLONG, FLOAT, IFD
-    case 5: case 10: case 12: case 16: case 17: case 18: return 8;  // RATIONALs, DOUBLE, LONG8, SLONG8, IFD8
-    default: return 0;
-  }
-}
+/// The GeoKeys of a raster's coordinate reference system (GeoTIFF 1.1, section 7).
+struct GeoKeys {
+  int model = 0;        ///< GTModelTypeGeoKey: 0 none (no keys), 1 projected, 2 geographic, 32767 user-defined
+  int epsg = 0;         ///< ProjectedCSTypeGeoKey (model 1) or GeographicTypeGeoKey (model 2); 0: none
+  std::string citation; ///< GTCitationGeoKey; empty: none
+};
+
+constexpr ttag_t kTagGdalMetadata = 42112, kTagGdalNodata = 42113;
+
+/// libtiff's messages for one handle: errors kept (the first one names the rule broken),
+/// warnings dropped. Nothing is printed.
+struct TiffMessages {
+  std::string error;
+};
+
+struct TiffCloser {
+  void operator()(TIFF* t) const;
+};
+using TiffPtr = std::unique_ptr<TIFF, TiffCloser>;
+
+/// TIFFOpenExt(path, mode) with handlers that collect libtiff's messages into `msgs` (which must
+/// outlive the handle), GeoTIFF's and GDAL's tags registered, and at most `max_alloc` bytes for
+/// any one allocation libtiff makes (0: libtiff's default). Null when libtiff refuses: msgs.error
+/// then says why.
+TiffPtr open_tiff(const std::string& path, const char* mode, TiffMessages& msgs, std::uint64_t max_alloc = 0);
+
 }  // namespace pcdp::io::detail

@@ -1,13 +1,17 @@
 #include "tiff_reader.hpp"
 
-#include <zlib.h>
+#include <geotiff/geokeys.h>
+#include <geotiff/geotiff.h>
+#include <geotiff/geovalues.h>
 
 #include <algorithm>
+#include <cstdarg>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <limits>
-#include <map>
 #include <memory>
 #include <stdexcept>
 
@@ -19,59 +23,28 @@
 namespace pcdp::io::detail {
 
 namespace {
-std::uint64_t le(const std::uint8_t* p, int bytes) {
-  std::uint64_t v = 0;
-  for (int i = bytes - 1; i >= 0; --i) v = v << 8 | p[i];
-  return v;
+/// libgeotiff's messages (a damaged GeoKey directory): kept with libtiff's, not printed.
+void geotiff_error(GTIF* g, int level, const char* fmt, ...) {
+  if (level != LIBGEOTIFF_ERROR) return;
+  auto* m = static_cast<TiffMessages*>(GTIFGetUserData(g));
+  if (!m || !m->error.empty()) return;
+  char buf[512];
+  va_list ap;
+  va_start(ap, fmt);
+  std::vsnprintf(buf, sizeof buf, fmt, ap);
+  va_end(ap);
+  m->error = buf;
 }
 
-constexpr std::uint64_t kChunkFloats = 256 * 1024;  // a row's buffer grows by at most this as data arrives
-constexpr std::uint64_t kInBytes = 64 * 1024;       // compressed bytes read at a time
-
-/// One stored block (strip or tile) of one plane, decoded a row at a time as its bytes are read:
-/// the memory it takes is its input buffer and zlib's window, whatever the block's size.
-struct BlockStream {
-  std::uint64_t off = 0, left = 0;  ///< the stored bytes not read yet
-  bool deflate = false, sparse = false, open = false;
-  z_stream z{};
-  std::vector<std::uint8_t> in;
-  BlockStream() = default;
-  BlockStream(const BlockStream&) = delete;
-  BlockStream& operator=(const BlockStream&) = delete;
-  ~BlockStream() {
-    if (open) inflateEnd(&z);
-  }
-};
-
-const char* tag_name(std::uint16_t tag) {
-  switch (tag) {
-    case 256: return "ImageWidth";
-    case 257: return "ImageLength";
-    case 258: return "BitsPerSample";
-    case 259: return "Compression";
-    case 273: return "StripOffsets";
-    case 277: return "SamplesPerPixel";
-    case 278: return "RowsPerStrip";
-    case 279: return "StripByteCounts";
-    case 284: return "PlanarConfiguration";
-    case 317: return "Predictor";
-    case 322: return "TileWidth";
-    case 323: return "TileLength";
-    case 339: return "SampleFormat";
-    default: return "a tag";
-  }
-}
-
-struct Entry {
-  std::uint16_t type = 0;
-  std::uint64_t count = 0;
-  std::vector<std::uint8_t> value;  ///< count values of the type's size (none for an unknown type)
+/// One libtiff handle and its messages (which libtiff's handlers write to: not moved).
+struct Handle {
+  TiffMessages msgs;
+  TiffPtr tif;
 };
 }  // namespace
 
 struct FloatTiffRows::Impl {
   std::string path;
-  std::ifstream in;
   std::uint64_t size = 0;  ///< of the file, bytes
   FloatTiffInfo info;
   // The raster is stored in blocks: strips (the raster's width, rps rows) or tiles (bw x rps,
@@ -80,131 +53,81 @@ struct FloatTiffRows::Impl {
   std::uint64_t w = 0, h = 0, spp = 0, rps = 0, planar = 1, compression = 1, strips_down = 0;
   std::uint64_t bw = 0, across = 1;
   bool tiled = false;
-  std::vector<std::uint64_t> offsets, counts;
+  /// handles[0] reads the directory, the tiles and the strips of sample 0; a band-interleaved
+  /// stripped file gets a handle per sample, each reading its strips a row at a time in order.
+  std::vector<std::unique_ptr<Handle>> handles;
   std::uint64_t next_down = 0;  ///< the next row of blocks
   std::vector<float> row;       ///< one row of a pixel-interleaved block
+  std::vector<std::vector<float>> tile;  ///< one tile of each plane
 
   [[noreturn]] void fail(const std::string& what) const { throw InputError(path + ": " + what); }
-
-  /// An error naming `what` unless the file holds `n` bytes at `off`.
-  void check_within(std::uint64_t off, std::uint64_t n, const std::string& what) const {
-    if (off > size || n > size - off)
-      fail(what + " lies beyond the end of the file (" + std::to_string(size) + " bytes)");
-  }
-  /// `n` bytes at `off` into `out`, or an error naming `what`.
-  void read(std::uint64_t off, std::uint64_t n, const std::string& what, std::uint8_t* out) {
-    check_within(off, n, what);
-    in.seekg(static_cast<std::streamoff>(off));
-    if (n && !in.read(reinterpret_cast<char*>(out), static_cast<std::streamsize>(n))) fail("cannot read " + what);
-  }
-  std::vector<std::uint8_t> read(std::uint64_t off, std::uint64_t n, const std::string& what) {
-    check_within(off, n, what);  // before allocating n bytes
-    std::vector<std::uint8_t> b(n);
-    read(off, n, what, b.data());
-    return b;
+  /// `what`, with libtiff's own words for it when it gave some.
+  [[noreturn]] void fail_lib(const Handle& hd, const std::string& what) const {
+    fail(what + (hd.msgs.error.empty() ? std::string() : " (libtiff: " + hd.msgs.error + ")"));
   }
 
-  /// The first image file directory, tag -> entry.
-  std::map<std::uint16_t, Entry> directory() {
-    const std::vector<std::uint8_t> h8 = read(0, 8, "the TIFF header");
-    if (h8[0] == 'M' && h8[1] == 'M') fail("a big-endian (\"MM\") TIFF; only little-endian (\"II\") files are read");
-    if (h8[0] != 'I' || h8[1] != 'I') fail("not a TIFF file (it does not start with \"II\" or \"MM\")");
-    const std::uint64_t magic = le(h8.data() + 2, 2);
-    bool big = false;
-    if (magic == 43) {
-      big = true;
-      if (le(h8.data() + 4, 2) != 8 || le(h8.data() + 6, 2) != 0) fail("a BigTIFF header with an offset size other than 8");
-    } else if (magic != 42) {
-      fail("not a TIFF file (version " + std::to_string(magic) + ", not 42 or 43)");
-    }
-    const int field = big ? 8 : 4, count_bytes = big ? 8 : 2, entry_bytes = big ? 20 : 12;
-    const std::uint64_t ifd = le(read(big ? 8 : 4, static_cast<std::uint64_t>(field), "the first directory's offset").data(), field);
-    const std::uint64_t n = le(read(ifd, static_cast<std::uint64_t>(count_bytes), "the first directory").data(), count_bytes);
-    if (n > size / static_cast<std::uint64_t>(entry_bytes)) fail("the first directory lies beyond the end of the file");
-    const std::vector<std::uint8_t> entries = read(ifd + count_bytes, n * entry_bytes, "the first directory");
-    std::map<std::uint16_t, Entry> dir;
-    for (std::uint64_t k = 0; k < n; ++k) {
-      const std::uint8_t* e = entries.data() + k * entry_bytes;
-      Entry en;
-      const auto tag = static_cast<std::uint16_t>(le(e, 2));
-      en.type = static_cast<std::uint16_t>(le(e + 2, 2));
-      en.count = le(e + 4, field);
-      if (en.count > size) fail("tag " + std::to_string(tag) + " counts more values than the file has bytes");
-      const std::uint64_t bytes = en.count * static_cast<std::uint64_t>(tiff_type_bytes(en.type));
-      const std::uint8_t* field_at = e + 4 + field;
-      if (bytes <= static_cast<std::uint64_t>(field))
-        en.value.assign(field_at, field_at + bytes);
-      else
-        en.value = read(le(field_at, field), bytes, "the values of tag " + std::to_string(tag));
-      dir[tag] = std::move(en);
-    }
-    return dir;
-  }
-
-  /// The integers of an entry (SHORT, LONG or LONG8).
-  std::vector<std::uint64_t> ints(std::uint16_t tag, const Entry& e) const {
-    if (e.type != kTiffShort && e.type != kTiffLong && e.type != kTiffLong8)
-      fail("tag " + std::to_string(tag) + " has field type " + std::to_string(e.type) + ", not an integer type");
-    const int unit = tiff_type_bytes(e.type);
-    std::vector<std::uint64_t> v(e.count);
-    for (std::uint64_t i = 0; i < e.count; ++i) v[i] = le(e.value.data() + i * unit, unit);
-    return v;
+  std::unique_ptr<Handle> open_handle() {
+    auto hd = std::make_unique<Handle>();
+    hd->tif = open_tiff(path, "r", hd->msgs);
+    if (!hd->tif) fail("not a TIFF file libtiff can read (" + hd->msgs.error + ")");
+    return hd;
   }
 
   void open() {
     require_regular_file(path, "GeoTIFF");
-    in.open(path, std::ios::binary | std::ios::ate);
-    if (!in) throw InputError(path + ": cannot open");
-    const std::streamoff end = in.tellg();
-    if (end < 0) throw InputError(path + ": cannot read");
-    size = static_cast<std::uint64_t>(end);
-    const auto dir = directory();
-
-    const auto values = [&](std::uint16_t tag) -> std::vector<std::uint64_t> {
-      const auto it = dir.find(tag);
-      if (it == dir.end()) return {};
-      return ints(tag, it->second);
-    };
-    const auto one = [&](std::uint16_t tag, std::uint64_t fallback, bool required) {
-      const std::vector<std::uint64_t> v = values(tag);
-      if (v.empty()) {
-        if (required) fail(std::string("tag ") + std::to_string(tag) + " (" + tag_name(tag) + ") is missing");
-        return fallback;
-      }
-      return v[0];
-    };
-    const auto all_equal = [&](std::uint16_t tag, std::uint64_t want, const std::string& rule) {
-      for (std::uint64_t v : values(tag))
-        if (v != want)
-          fail(std::string("tag ") + std::to_string(tag) + " (" + tag_name(tag) + ") = " + std::to_string(v) + ": " + rule);
-    };
-    tiled = dir.count(322) || dir.count(323) || dir.count(324) || dir.count(325);
-    w = one(256, 0, true);
-    h = one(257, 0, true);
-    spp = one(277, 1, false);
-    if (w < 1 || h < 1 || spp < 1 || w > std::numeric_limits<int>::max() || h > std::numeric_limits<int>::max() ||
-        spp > 65535)
+    {
+      std::ifstream in(path, std::ios::binary);
+      if (!in) throw InputError(path + ": cannot open");
+      char magic[4] = {};
+      in.read(magic, 4);
+      const bool ii = magic[0] == 'I' && magic[1] == 'I' && (magic[2] == 42 || magic[2] == 43) && magic[3] == 0;
+      const bool mm = magic[0] == 'M' && magic[1] == 'M' && magic[2] == 0 && (magic[3] == 42 || magic[3] == 43);
+      if (!in || (!ii && !mm)) fail("not a TIFF file (it starts with neither \"II*\" nor \"MM*\", classic or BigTIFF)");
+      std::error_code ec;
+      size = std::filesystem::file_size(path, ec);
+      if (ec) throw InputError(path + ": cannot read (" + ec.message() + ")");
+    }
+    handles.push_back(open_handle());
+    Handle& hd = *handles[0];
+    TIFF* t = hd.tif.get();
+    std::uint32_t w32 = 0, h32 = 0;
+    if (!TIFFGetField(t, TIFFTAG_IMAGEWIDTH, &w32)) fail("tag 256 (ImageWidth) is missing");
+    if (!TIFFGetField(t, TIFFTAG_IMAGELENGTH, &h32)) fail("tag 257 (ImageLength) is missing");
+    std::uint16_t spp16 = 1, bps = 0, format = 0, comp = 1, pred = 1, pc = 1;
+    TIFFGetField(t, TIFFTAG_SAMPLESPERPIXEL, &spp16);
+    w = w32;
+    h = h32;
+    spp = spp16;
+    if (w < 1 || h < 1 || spp < 1 || w > std::numeric_limits<int>::max() || h > std::numeric_limits<int>::max())
       fail("a raster of " + std::to_string(w) + " x " + std::to_string(h) + " x " + std::to_string(spp) +
            " samples; each must be at least 1 (and fit an int)");
-    if (values(258).empty()) fail("tag 258 (BitsPerSample) is missing");
-    all_equal(258, 32, "only 32-bit samples are read");
-    if (values(339).empty()) fail("tag 339 (SampleFormat) is missing: only IEEE float (3) samples are read");
-    all_equal(339, 3, "only IEEE float (3) samples are read");
-    compression = one(259, 1, false);
-    if (compression != 1 && compression != 8 && compression != 32946)
-      fail("tag 259 (Compression) = " + std::to_string(compression) + ": only none (1) and DEFLATE (8, 32946) are read");
-    const std::uint64_t predictor = one(317, 1, false);
-    if (predictor != 1) fail("tag 317 (Predictor) = " + std::to_string(predictor) + ": only no predictor (1) is read");
-    planar = one(284, 1, false);
+    if (!TIFFGetField(t, TIFFTAG_BITSPERSAMPLE, &bps)) fail("tag 258 (BitsPerSample) is missing");
+    if (bps != 32) fail("tag 258 (BitsPerSample) = " + std::to_string(bps) + ": only 32-bit samples are read");
+    if (!TIFFGetField(t, TIFFTAG_SAMPLEFORMAT, &format))
+      fail("tag 339 (SampleFormat) is missing: only IEEE float (3) samples are read");
+    if (format != SAMPLEFORMAT_IEEEFP)
+      fail("tag 339 (SampleFormat) = " + std::to_string(format) + ": only IEEE float (3) samples are read");
+    TIFFGetField(t, TIFFTAG_COMPRESSION, &comp);
+    compression = comp;
+    if (comp != COMPRESSION_NONE && comp != COMPRESSION_ADOBE_DEFLATE && comp != COMPRESSION_DEFLATE)
+      fail("tag 259 (Compression) = " + std::to_string(comp) + ": only none (1) and DEFLATE (8, 32946) are read");
+    TIFFGetField(t, TIFFTAG_PREDICTOR, &pred);
+    if (pred != PREDICTOR_NONE) fail("tag 317 (Predictor) = " + std::to_string(pred) + ": only no predictor (1) is read");
+    TIFFGetField(t, TIFFTAG_PLANARCONFIG, &pc);
+    planar = pc;
     if (planar != 1 && planar != 2) fail("tag 284 (PlanarConfiguration) = " + std::to_string(planar) + ": must be 1 or 2");
     const std::uint64_t per_pixel = planar == 2 ? 1 : spp;  // samples of a pixel in one block
+    tiled = TIFFIsTiled(t) != 0;
     if (tiled) {
-      bw = one(322, 0, true);
-      rps = one(323, 0, true);
+      std::uint32_t tw = 0, tl = 0;
+      TIFFGetField(t, TIFFTAG_TILEWIDTH, &tw);
+      TIFFGetField(t, TIFFTAG_TILELENGTH, &tl);
+      bw = tw;
+      rps = tl;
       if (bw < 1 || rps < 1)
         fail("tags 322 and 323 (TileWidth, TileLength) = " + std::to_string(bw) + " x " + std::to_string(rps) +
              ": each must be at least 1");
-      // A tile is stored whole, padding included: it cannot outgrow what the file can hold
+      // A tile is decoded whole, padding included: it cannot outgrow what the file can hold
       // (DEFLATE expands at most 1032 to 1). Checked before a tile's buffer is allocated.
       const std::uint64_t limit = size * 1032 + 4096;
       if (bw > limit / rps / per_pixel / 4)
@@ -212,143 +135,151 @@ struct FloatTiffRows::Impl {
              " floats are larger than the file's " + std::to_string(size) + " bytes can hold");
       across = (w + bw - 1) / bw;
     } else {
+      std::uint32_t r = 0;
       bw = w;
-      rps = std::min(one(278, h, false), h);
+      rps = TIFFGetField(t, TIFFTAG_ROWSPERSTRIP, &r) ? std::min<std::uint64_t>(r, h) : h;
       if (rps < 1) fail("tag 278 (RowsPerStrip) = 0");
     }
-
     strips_down = (h + rps - 1) / rps;
     const std::uint64_t blocks = strips_down * across * (planar == 2 ? spp : 1);
-    offsets = values(tiled ? 324 : 273);
-    counts = values(tiled ? 325 : 279);
-    if (offsets.size() != blocks || counts.size() != blocks) {
-      const std::string tags =
-          tiled ? "tags 324 and 325 (TileOffsets, TileByteCounts)" : "tags 273 and 279 (StripOffsets, StripByteCounts)";
-      fail(tags + " hold " + std::to_string(offsets.size()) + " and " + std::to_string(counts.size()) +
+    const std::uint64_t have = tiled ? TIFFNumberOfTiles(t) : TIFFNumberOfStrips(t);
+    if (have != blocks)
+      fail(std::string(tiled ? "the file holds " : "the file holds ") + std::to_string(have) +
            (tiled ? " tiles" : " strips") + "; the raster has " + std::to_string(blocks));
+    for (std::uint64_t s = 0; s < blocks; ++s) {
+      int err = 0;
+      const std::uint64_t off = TIFFGetStrileOffsetWithErr(t, static_cast<std::uint32_t>(s), &err);
+      const std::uint64_t n = err ? 0 : TIFFGetStrileByteCountWithErr(t, static_cast<std::uint32_t>(s), &err);
+      if (err) fail_lib(hd, "the offset or byte count of " + block_name(s) + " cannot be read");
+      if (off > size || n > size - off)
+        fail(block_name(s) + " lies beyond the end of the file (" + std::to_string(size) + " bytes)");
     }
 
     info.width = static_cast<int>(w);
     info.height = static_cast<int>(h);
     info.bands = static_cast<int>(spp);
-    const auto doubles = [&](std::uint16_t tag, double* out, std::uint64_t k) {
-      const auto it = dir.find(tag);
-      if (it == dir.end()) return false;
-      if (it->second.type != kTiffDouble || it->second.count < k)
-        fail("tag " + std::to_string(tag) + " must hold at least " + std::to_string(k) + " doubles");
-      for (std::uint64_t i = 0; i < k; ++i) {
-        const std::uint64_t u = le(it->second.value.data() + 8 * i, 8);
-        std::memcpy(&out[i], &u, sizeof u);
-      }
+    const auto doubles = [&](ttag_t tag, double* out, std::uint16_t k) {
+      std::uint16_t count = 0;
+      double* v = nullptr;
+      if (!TIFFGetField(t, tag, &count, &v)) return false;
+      if (!v || count < k) fail("tag " + std::to_string(tag) + " must hold at least " + std::to_string(k) + " doubles");
+      std::copy(v, v + k, out);
       return true;
     };
-    const bool scale = doubles(33550, info.pixel_scale, 3), tie = doubles(33922, info.tiepoint, 6);
+    const bool scale = doubles(TIFFTAG_GEOPIXELSCALE, info.pixel_scale, 3), tie = doubles(TIFFTAG_GEOTIEPOINTS, info.tiepoint, 6);
     info.georeferenced = scale && tie;
-    const auto md = dir.find(42112);
-    if (md != dir.end()) {
-      if (md->second.type != kTiffAscii) fail("tag 42112 (GDAL_METADATA) is not ASCII");
-      const char* c = reinterpret_cast<const char*>(md->second.value.data());
-      info.gdal_metadata.assign(c, std::find(c, c + md->second.value.size(), '\0'));
-    }
+    char* md = nullptr;
+    if (TIFFGetField(t, kTagGdalMetadata, &md) && md) info.gdal_metadata = md;
+    read_geokeys(hd);
+  }
+
+  void read_geokeys(Handle& hd) {
+    GTIF* g = GTIFNewEx(hd.tif.get(), geotiff_error, &hd.msgs);
+    if (!g) fail_lib(hd, "its GeoKey directory (tag 34735) cannot be read");
+    std::unique_ptr<GTIF, void (*)(GTIF*)> guard(g, GTIFFree);
+    GeoKeys& k = info.geokeys;
+    unsigned short v = 0;
+    if (GTIFKeyGetSHORT(g, GTModelTypeGeoKey, &v, 0, 1) == 1) k.model = v;
+    if (GTIFKeyGetSHORT(g, ProjectedCSTypeGeoKey, &v, 0, 1) == 1 && k.model == ModelTypeProjected) k.epsg = v;
+    if (GTIFKeyGetSHORT(g, GeographicTypeGeoKey, &v, 0, 1) == 1 && k.model == ModelTypeGeographic) k.epsg = v;
+    if (k.epsg == KvUserDefined) k.epsg = 0;
+    char cit[4096] = {};
+    if (GTIFKeyGetASCII(g, GTCitationGeoKey, cit, sizeof cit) > 0) k.citation = cit;
   }
 
   std::string block_name(std::uint64_t s) const { return (tiled ? "tile " : "strip ") + std::to_string(s); }
 
-  /// Opens block `s`, of which `rows` rows of bw pixels and `per_pixel` samples a pixel will be
-  /// read. Checked before anything is allocated: the block lies in the file, and its bytes can
-  /// hold those rows (DEFLATE expands at most 1032 to 1; uncompressed, they are the bytes). A
-  /// block with offset and byte count 0 is not stored (a sparse file): nodata.
-  void open_block(std::uint64_t s, std::uint64_t rows, std::uint64_t per_pixel, BlockStream& b) {
-    b.sparse = offsets[s] == 0 && counts[s] == 0;
-    if (b.sparse) return;
-    const std::string what = block_name(s);
-    check_within(offsets[s], counts[s], what);
-    const std::uint64_t need = rows * bw * per_pixel * 4;  // < 2^62: each factor is checked
-    if (compression == 1 ? counts[s] < need : need > counts[s] * 1032 + 1024)
-      fail(what + " holds " + std::to_string(counts[s]) + " bytes, too few for " + std::to_string(rows) + " rows of " +
-           std::to_string(bw) + " x " + std::to_string(per_pixel) + " floats");
-    b.off = offsets[s];
-    b.left = counts[s];
-    b.deflate = compression != 1;
-    if (b.deflate) {
-      if (inflateInit(&b.z) != Z_OK) throw std::runtime_error(path + ": cannot set up DEFLATE");
-      b.open = true;
-    }
+  bool sparse(std::uint64_t s) const {
+    TIFF* t = handles[0]->tif.get();
+    return TIFFGetStrileOffset(t, static_cast<std::uint32_t>(s)) == 0 &&
+           TIFFGetStrileByteCount(t, static_cast<std::uint32_t>(s)) == 0;
   }
 
-  /// The next row of an open block, n floats, into `out` (grown as the data arrives).
-  void read_row(BlockStream& b, std::uint64_t n, std::vector<float>& out, std::uint64_t s) {
-    out.clear();
-    if (b.sparse) {
-      out.assign(n, std::numeric_limits<float>::quiet_NaN());
-      return;
-    }
-    std::uint64_t got = 0;  // floats
-    while (got < n) {
-      const std::uint64_t want = std::min(n, got + kChunkFloats);
-      out.resize(want);
-      if (!b.deflate) {
-        read(b.off, (want - got) * 4, block_name(s), reinterpret_cast<std::uint8_t*>(out.data() + got));
-        b.off += (want - got) * 4;
-        got = want;
-        continue;
-      }
-      b.z.next_out = reinterpret_cast<Bytef*>(out.data()) + got * 4;
-      b.z.avail_out = static_cast<uInt>((want - got) * 4);
-      while (b.z.avail_out > 0) {
-        if (b.z.avail_in == 0) {
-          if (b.left == 0) fail(block_name(s) + " is not a whole DEFLATE (zlib) stream of its rows");
-          const std::uint64_t k = std::min(b.left, kInBytes);
-          b.in.resize(k);
-          read(b.off, k, block_name(s), b.in.data());
-          b.off += k;
-          b.left -= k;
-          b.z.next_in = b.in.data();
-          b.z.avail_in = static_cast<uInt>(k);
-        }
-        // Damage past the rows wanted (inflate may read ahead) surfaces with the rows after them.
-        const int r = inflate(&b.z, Z_NO_FLUSH);
-        if (r != Z_OK && b.z.avail_out > 0) fail(block_name(s) + " is not a whole DEFLATE (zlib) stream of its rows");
-      }
-      got = want;
-    }
+  /// Checked before block `s` is decoded (its `rows` rows of bw pixels and `per_pixel` samples a
+  /// pixel): its bytes can hold those rows (DEFLATE expands at most 1032 to 1; uncompressed,
+  /// they are the bytes).
+  void check_block(std::uint64_t s, std::uint64_t rows, std::uint64_t per_pixel) const {
+    const std::uint64_t count = TIFFGetStrileByteCount(handles[0]->tif.get(), static_cast<std::uint32_t>(s));
+    const std::uint64_t need = rows * bw * per_pixel * 4;  // < 2^62: each factor is checked
+    if (compression == 1 ? count < need : need > count * 1032 + 1024)
+      fail(block_name(s) + " holds " + std::to_string(count) + " bytes, too few for " + std::to_string(rows) +
+           " rows of " + std::to_string(bw) + " x " + std::to_string(per_pixel) + " floats");
   }
 
   /// f(piece) for each row of the blocks in row `down` of blocks, block after block (left to
   /// right), every band's samples of the row's part in that block. Blocks of which no plane is
-  /// stored are skipped when `skip_sparse`.
+  /// stored are skipped when `skip_sparse`; a plane not stored reads as NaN.
   template <typename F>
   void block_row(std::uint64_t down, bool skip_sparse, FloatTiffPiece& piece, F&& f) {
+    const float nan = std::numeric_limits<float>::quiet_NaN();
     const std::uint64_t n = std::min(rps, h - down * rps);
     const std::uint64_t per_pixel = planar == 2 ? 1 : spp;
     const std::uint64_t planes = planar == 2 ? spp : 1, per_plane = strips_down * across;
     piece.bands.resize(spp);
+    if (!tiled && planar == 2)
+      while (handles.size() < spp) handles.push_back(open_handle());  // a handle per plane, reading in order
     for (std::uint64_t j = 0; j < across; ++j) {
-      std::vector<BlockStream> streams(planes);
+      std::vector<char> stored(planes);
       bool any = false;
       for (std::uint64_t p = 0; p < planes; ++p) {
         const std::uint64_t s = p * per_plane + down * across + j;
-        open_block(s, n, per_pixel, streams[p]);
-        any = any || !streams[p].sparse;
+        stored[p] = !sparse(s);
+        if (stored[p]) check_block(s, tiled ? rps : n, per_pixel);
+        any = any || stored[p];
       }
       if (!any && skip_sparse) continue;
       const std::uint64_t x0 = j * bw, cols = std::min(bw, w - x0);
       piece.col0 = static_cast<int>(x0);
       piece.cols = static_cast<int>(cols);
+      if (tiled) {  // each plane's tile decoded whole (its size checked against the file's above)
+        tile.resize(planes);
+        for (std::uint64_t p = 0; p < planes; ++p) {
+          const std::uint64_t s = p * per_plane + down * across + j;
+          tile[p].assign(stored[p] ? bw * rps * per_pixel : 0, 0.0f);
+          if (!stored[p]) continue;
+          const auto bytes = static_cast<tmsize_t>(tile[p].size() * sizeof(float));
+          if (TIFFReadEncodedTile(handles[0]->tif.get(), static_cast<std::uint32_t>(s), tile[p].data(), bytes) != bytes)
+            fail_lib(*handles[0], block_name(s) + " cannot be decoded");
+        }
+      }
       for (std::uint64_t r = 0; r < n; ++r) {
+        const std::uint64_t y = down * rps + r;
         if (planar == 2) {
           for (std::uint64_t p = 0; p < planes; ++p) {
-            read_row(streams[p], bw, piece.bands[p], p * per_plane + down * across + j);
-            piece.bands[p].resize(cols);
+            std::vector<float>& out = piece.bands[p];
+            const std::uint64_t s = p * per_plane + down * across + j;
+            if (!stored[p]) {
+              out.assign(cols, nan);
+            } else if (tiled) {
+              out.assign(tile[p].begin() + static_cast<std::ptrdiff_t>(r * bw), tile[p].begin() + static_cast<std::ptrdiff_t>(r * bw + cols));
+            } else {
+              out.resize(w);
+              Handle& hd = *handles[p];
+              if (TIFFReadScanline(hd.tif.get(), out.data(), static_cast<std::uint32_t>(y), static_cast<std::uint16_t>(p)) < 0)
+                fail_lib(hd, block_name(s) + " cannot be decoded (row " + std::to_string(y) + ")");
+            }
           }
         } else {
-          read_row(streams[0], bw * spp, this->row, down * across + j);
-          for (std::uint64_t b = 0; b < spp; ++b) {
-            piece.bands[b].resize(cols);
-            for (std::uint64_t c = 0; c < cols; ++c) piece.bands[b][c] = this->row[c * spp + b];
+          const std::uint64_t s = down * across + j;
+          if (!stored[0]) {
+            for (std::uint64_t b = 0; b < spp; ++b) piece.bands[b].assign(cols, nan);
+          } else {
+            const float* src = nullptr;
+            if (tiled) {
+              src = tile[0].data() + r * bw * spp;
+            } else {
+              row.resize(w * spp);
+              if (TIFFReadScanline(handles[0]->tif.get(), row.data(), static_cast<std::uint32_t>(y), 0) < 0)
+                fail_lib(*handles[0], block_name(s) + " cannot be decoded (row " + std::to_string(y) + ")");
+              src = row.data();
+            }
+            for (std::uint64_t b = 0; b < spp; ++b) {
+              piece.bands[b].resize(cols);
+              for (std::uint64_t c = 0; c < cols; ++c) piece.bands[b][c] = src[c * spp + b];
+            }
           }
         }
-        piece.row = static_cast<int>(down * rps + r);
+        piece.row = static_cast<int>(y);
         f(static_cast<const FloatTiffPiece&>(piece));
       }
     }

@@ -1,18 +1,20 @@
-// A small reader of the float32 GeoTIFFs pcd_pipeline writes (tiff_writer.hpp) and those GDAL
-// wrote for it before (COMPRESS=DEFLATE, INTERLEAVE=BAND, strips): enough for `merge` to read
-// elevation grids back without linking GDAL, whose hundred-odd shared libraries cost every start
-// of the command line tool about 50 ms (docs/performance.md).
+// A reader of float32 GeoTIFFs through libtiff: those pcd_pipeline writes (tiff_writer.hpp) and
+// those GDAL wrote for it before or re-tiled since (COMPRESS=DEFLATE or none, INTERLEAVE=BAND or
+// PIXEL, strips or tiles, classic TIFF or BigTIFF, a COG): `merge` reads elevation grids back
+// without linking GDAL, whose hundred-odd shared libraries cost every start of the command line
+// tool about 50 ms (docs/performance.md).
 //
-// It reads little-endian ("II") classic TIFF and BigTIFF, strips or tiles, uncompressed or
-// DEFLATE, no predictor, 32-bit IEEE float samples, planar or interleaved; the GeoTIFF pixel
-// scale and tie point; and GDAL's metadata tag. Anything else is an InputError naming the file
-// and the rule. Every offset and count is checked against the file before use, and each strip or
-// tile's rows against what its stored bytes can hold (DEFLATE expands at most 1032 to 1) before it
-// is decoded; blocks are inflated (zlib) a row at a time, and a row's memory grows as its data
-// arrives, so a damaged or hostile file cannot make it read out of bounds or allocate beyond what
-// it holds (a 1 MB file claiming 3500 x 3500 x 22 floats costs a row, 308 kB). A block with offset
-// and byte count 0 is not stored (a sparse file, as GDAL's SPARSE_OK and tiff_writer.hpp's tiles
-// write them): nodata.
+// libtiff parses the file (the maintained parser: merge reads files from other machines); its
+// messages go to the handle, never to stderr, and come back as an InputError naming the file and
+// the strip or tile. On top of libtiff this reader asks for 32-bit IEEE float samples, DEFLATE or
+// no compression, no predictor; the GeoTIFF pixel scale and tie point, the GeoKeys and GDAL's
+// metadata tag. Every block is checked against the file before it is decoded (it lies in the
+// file; its bytes can hold its rows: DEFLATE expands at most 1032 to 1). Strips are decoded a row
+// at a time (libtiff's scanline reader, a handle per band of a band-interleaved file), so a
+// damaged or hostile file claiming a huge strip costs a row (a 1 MB file claiming 3500 x 3500 x 22
+// floats: 308 kB); a tile is decoded whole (its size checked against the file's first). A block
+// with offset and byte count 0 is not stored (a sparse file, as GDAL's SPARSE_OK and
+// tiff_writer.hpp's tiles write them): nodata.
 #pragma once
 
 #include <functional>
@@ -20,6 +22,8 @@
 #include <string>
 #include <utility>
 #include <vector>
+
+#include "tiff_format.hpp"
 
 namespace pcdp::io::detail {
 
@@ -30,6 +34,7 @@ struct FloatTiffInfo {
   double tiepoint[6] = {0, 0, 0, 0, 0, 0};  ///< ModelTiepointTag (33922), the first tie point
   bool georeferenced = false;               ///< both tags were present
   std::string gdal_metadata;                ///< GDAL_METADATA (42112) XML; empty: absent
+  GeoKeys geokeys;                          ///< model 0: no GeoKey directory
 };
 
 /// One row of one block (strip or tile): `cols` pixels from (row, col0), every band's samples.

@@ -10,6 +10,10 @@
 #include <memory>
 #include <stdexcept>
 
+#include <geotiff/geokeys.h>
+#include <geotiff/geotiff.h>
+#include <geotiff/geovalues.h>
+
 #include "pcdp/errors.hpp"
 #include "tiff_format.hpp"
 #include "xml_escape.hpp"
@@ -17,75 +21,6 @@
 namespace pcdp::io::detail {
 
 namespace {
-
-// Little-endian bytes, whatever the host.
-void put(std::vector<std::uint8_t>& b, std::uint64_t v, int bytes) {
-  for (int i = 0; i < bytes; ++i) b.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
-}
-void put_double(std::vector<std::uint8_t>& b, double d) {
-  std::uint64_t u;
-  static_assert(sizeof u == sizeof d, "IEEE double");
-  std::memcpy(&u, &d, sizeof u);
-  put(b, u, 8);
-}
-
-// One image file directory: entries collected in tag order, laid out by bytes(). Values that fit
-// in an entry's value field sit there; the others follow the directory, word-aligned.
-class Ifd {
- public:
-  explicit Ifd(bool big) : big_(big) {}
-  void ints(std::uint16_t tag, std::uint16_t type, const std::vector<std::uint64_t>& v) {
-    const int bytes = tiff_type_bytes(type);
-    std::vector<std::uint8_t> b;
-    for (std::uint64_t x : v) put(b, x, bytes);
-    entries_.push_back({tag, type, v.size(), std::move(b)});
-  }
-  void doubles(std::uint16_t tag, const double* v, std::size_t n) {
-    std::vector<std::uint8_t> b;
-    for (std::size_t i = 0; i < n; ++i) put_double(b, v[i]);
-    entries_.push_back({tag, kTiffDouble, n, std::move(b)});
-  }
-  void ascii(std::uint16_t tag, const std::string& s) {
-    std::vector<std::uint8_t> b(s.begin(), s.end());
-    b.push_back(0);
-    const std::size_t n = b.size();
-    entries_.push_back({tag, kTiffAscii, n, std::move(b)});
-  }
-  /// The directory at file offset `at` (entry count, entries, no next directory), then the
-  /// values that did not fit in their entries.
-  std::vector<std::uint8_t> bytes(std::uint64_t at) const {
-    const int count_bytes = big_ ? 8 : 2, field = big_ ? 8 : 4;
-    const std::uint64_t dir_size = count_bytes + (big_ ? 20 : 12) * entries_.size() + field;
-    std::vector<std::uint8_t> dir, ext;
-    put(dir, entries_.size(), count_bytes);
-    for (const Entry& e : entries_) {
-      put(dir, e.tag, 2);
-      put(dir, e.type, 2);
-      put(dir, e.count, field);
-      if (e.value.size() <= static_cast<std::size_t>(field)) {
-        dir.insert(dir.end(), e.value.begin(), e.value.end());
-        for (std::size_t i = e.value.size(); i < static_cast<std::size_t>(field); ++i) dir.push_back(0);
-      } else {
-        while (ext.size() % 8) ext.push_back(0);  // TIFF 6.0 asks for even offsets
-        put(dir, at + dir_size + ext.size(), field);
-        ext.insert(ext.end(), e.value.begin(), e.value.end());
-      }
-    }
-    put(dir, 0, field);
-    dir.insert(dir.end(), ext.begin(), ext.end());
-    return dir;
-  }
-
- private:
-  struct Entry {
-    std::uint16_t tag, type;
-    std::uint64_t count;
-    std::vector<std::uint8_t> value;
-  };
-  bool big_;
-  std::vector<Entry> entries_;
-};
-
 struct CompressorFree {
   void operator()(libdeflate_compressor* c) const { libdeflate_free_compressor(c); }
 };
@@ -138,14 +73,20 @@ struct Layout {
 };
 
 /// Compresses blocks into `out` (one vector per band and block, band after band); an empty
-/// vector is a block not stored (sparse).
+/// vector is a block not stored (sparse). `raw`: copies them, for libtiff's codec to compress.
 class Compressor {
  public:
-  Compressor(const std::string& path, int level) : path_(path), c_(libdeflate_alloc_compressor(level)) {
-    if (!c_) throw std::runtime_error(path + ": cannot set up DEFLATE at level " + std::to_string(level));
+  Compressor(const std::string& path, int level, bool raw)
+      : path_(path), raw_(raw), c_(libdeflate_alloc_compressor(level)) {
+    if (!c_ || level > 12) throw std::runtime_error(path + ": cannot set up DEFLATE at level " + std::to_string(level));
   }
   void operator()(const float* data, std::size_t n, std::vector<std::uint8_t>& z) {
     const std::size_t in = n * sizeof(float);
+    if (raw_) {
+      z.resize(in);
+      std::memcpy(z.data(), data, in);
+      return;
+    }
     z.resize(libdeflate_zlib_compress_bound(c_.get(), in));
     // TIFF stores little-endian floats in an "II" file: the plane's own bytes on this host.
     static_assert(std::numeric_limits<float>::is_iec559, "IEEE float");
@@ -157,10 +98,11 @@ class Compressor {
 
  private:
   const std::string& path_;
+  bool raw_;
   std::unique_ptr<libdeflate_compressor, CompressorFree> c_;
 };
 
-void write_file(const std::string& path, const FloatTiff& t, const Layout& L,
+void write_file(const std::string& path, const FloatTiff& t, const Layout& L, int level,
                 const std::vector<std::vector<std::uint8_t>>& out);
 }  // namespace
 
@@ -171,7 +113,7 @@ void write_float_tiff(const std::string& path, const FloatTiff& t, int level, co
   // Compressed strips, band after band (PlanarConfiguration 2 orders them so).
   std::vector<std::vector<std::uint8_t>> out(L.nb * L.blocks);
   share.run(L.first.size() - 1, [&](std::size_t g) {
-    Compressor compress(path, level);
+    Compressor compress(path, level, t.libtiff_codec);
     std::vector<std::vector<float>> planes(static_cast<std::size_t>(L.first[g + 1] - L.first[g]), std::vector<float>(L.w * L.h));
     fill(L.first[g], planes);
     for (std::size_t j = 0; j < planes.size(); ++j) {
@@ -180,7 +122,7 @@ void write_float_tiff(const std::string& path, const FloatTiff& t, int level, co
         compress(planes[j].data() + s * L.bh * L.w, L.rows(s) * L.w, out[b * L.blocks + s]);
     }
   });
-  write_file(path, t, L, out);
+  write_file(path, t, L, level, out);
 }
 
 void write_float_tiff_blocks(const std::string& path, const FloatTiff& t, int level, const BlockFill& fill,
@@ -188,7 +130,7 @@ void write_float_tiff_blocks(const std::string& path, const FloatTiff& t, int le
   const Layout L(path, t);
   std::vector<std::vector<std::uint8_t>> out(L.nb * L.blocks);
   share.run(L.first.size() - 1, [&](std::size_t g) {
-    Compressor compress(path, level);
+    Compressor compress(path, level, t.libtiff_codec);
     std::vector<std::vector<float>> planes(static_cast<std::size_t>(L.first[g + 1] - L.first[g]));
     for (std::size_t s = 0; s < L.blocks; ++s) {
       Block blk;
@@ -205,80 +147,86 @@ void write_float_tiff_blocks(const std::string& path, const FloatTiff& t, int le
         compress(planes[j].data(), planes[j].size(), out[(static_cast<std::size_t>(L.first[g]) + j) * L.blocks + s]);
     }
   });
-  write_file(path, t, L, out);
+  write_file(path, t, L, level, out);
+}
+namespace {
+/// The first error libtiff or libgeotiff reported, or `what`.
+[[noreturn]] void fail_write(const std::string& path, const TiffMessages& m, const std::string& what) {
+  std::remove(path.c_str());
+  throw OutputError(path + ": cannot write the GeoTIFF (" + (m.error.empty() ? what : m.error) + ")");
 }
 
-namespace {
-void write_file(const std::string& path, const FloatTiff& t, const Layout& L,
+void write_geokeys(TIFF* tif, const std::string& path, const GeoKeys& k, TiffMessages& m) {
+  if (k.model == 0) return;
+  GTIF* g = GTIFNew(tif);
+  if (!g) fail_write(path, m, "libgeotiff cannot set up its keys");
+  GTIFKeySet(g, GTModelTypeGeoKey, TYPE_SHORT, 1, k.model);
+  GTIFKeySet(g, GTRasterTypeGeoKey, TYPE_SHORT, 1, RasterPixelIsArea);
+  if (!k.citation.empty()) GTIFKeySet(g, GTCitationGeoKey, TYPE_ASCII, 0, k.citation.c_str());
+  if (k.model == ModelTypeProjected && k.epsg > 0) GTIFKeySet(g, ProjectedCSTypeGeoKey, TYPE_SHORT, 1, k.epsg);
+  if (k.model == ModelTypeGeographic && k.epsg > 0) GTIFKeySet(g, GeographicTypeGeoKey, TYPE_SHORT, 1, k.epsg);
+  const int ok = GTIFWriteKeys(g);
+  GTIFFree(g);
+  if (!ok) fail_write(path, m, "libgeotiff cannot write its keys");
+}
+
+void write_file(const std::string& path, const FloatTiff& t, const Layout& L, int level,
                 const std::vector<std::vector<std::uint8_t>>& out) {
-  const std::size_t w = L.w, h = L.h, nb = L.nb;
   std::uint64_t data_bytes = 0;
   for (const auto& z : out) data_bytes += z.size();
   // Past 4 GiB of offsets a classic TIFF cannot point: BigTIFF then (GDAL's BIGTIFF=IF_NEEDED).
   const bool big = t.bigtiff || data_bytes + (std::uint64_t{1} << 24) > std::numeric_limits<std::uint32_t>::max();
-  const std::uint64_t header = big ? 16 : 8;
-  const std::uint64_t ifd_at = (header + data_bytes + 7) / 8 * 8;
-  Ifd ifd(big);
-  const std::uint16_t off_type = big ? kTiffLong8 : kTiffLong;
-  std::vector<std::uint64_t> offsets, counts;
-  std::uint64_t at = header;
-  for (const auto& z : out) {
-    offsets.push_back(z.empty() ? 0 : at);  // an empty block: not stored
-    counts.push_back(z.size());
-    at += z.size();
-  }
-  // Entries in ascending tag order.
-  ifd.ints(256, kTiffLong, {w});                                // ImageWidth
-  ifd.ints(257, kTiffLong, {h});                                // ImageLength
-  ifd.ints(258, kTiffShort, std::vector<std::uint64_t>(nb, 32));  // BitsPerSample
-  ifd.ints(259, kTiffShort, {8});                               // Compression: Deflate (zlib stream)
-  ifd.ints(262, kTiffShort, {1});                               // PhotometricInterpretation: BlackIsZero
-  if (!t.tile) ifd.ints(273, off_type, offsets);            // StripOffsets
-  ifd.ints(277, kTiffShort, {nb});                              // SamplesPerPixel
-  if (!t.tile) ifd.ints(278, kTiffLong, {L.bh});                // RowsPerStrip
-  if (!t.tile) ifd.ints(279, off_type, counts);             // StripByteCounts
-  ifd.ints(284, kTiffShort, {2});                               // PlanarConfiguration: separate planes
-  ifd.ints(317, kTiffShort, {1});                               // Predictor: none
-  if (t.tile) {
-    ifd.ints(322, kTiffLong, {L.bw});     // TileWidth
-    ifd.ints(323, kTiffLong, {L.bh});     // TileLength
-    ifd.ints(324, off_type, offsets);  // TileOffsets (0: not stored)
-    ifd.ints(325, off_type, counts);   // TileByteCounts (0: not stored)
-  }
-  if (nb > 1) ifd.ints(338, kTiffShort, std::vector<std::uint64_t>(nb - 1, 0));  // ExtraSamples: unspecified
-  ifd.ints(339, kTiffShort, std::vector<std::uint64_t>(nb, 3));  // SampleFormat: IEEE float
-  ifd.doubles(33550, t.pixel_scale, 3);
-  ifd.doubles(33922, t.tiepoint, 6);
-  if (!t.gdal_metadata.empty()) ifd.ascii(42112, t.gdal_metadata);
-  if (!t.gdal_nodata.empty()) ifd.ascii(42113, t.gdal_nodata);
-
-  std::vector<std::uint8_t> head;
-  head.push_back('I');
-  head.push_back('I');
-  if (big) {
-    put(head, 43, 2);
-    put(head, 8, 2);  // bytes per offset
-    put(head, 0, 2);
-    put(head, ifd_at, 8);
-  } else {
-    put(head, 42, 2);
-    put(head, ifd_at, 4);
-  }
-  const std::vector<std::uint8_t> tail = ifd.bytes(ifd_at);
-  std::FILE* f = std::fopen(path.c_str(), "wb");
-  if (!f) throw OutputError(path + ": cannot create (" + std::string(std::strerror(errno)) + ")");
-  bool ok = std::fwrite(head.data(), 1, head.size(), f) == head.size();
-  for (const auto& z : out) ok = ok && std::fwrite(z.data(), 1, z.size(), f) == z.size();
-  static const std::uint8_t zeros[8] = {};
-  const std::size_t pad = static_cast<std::size_t>(ifd_at - header - data_bytes);
-  ok = ok && std::fwrite(zeros, 1, pad, f) == pad;
-  ok = ok && std::fwrite(tail.data(), 1, tail.size(), f) == tail.size();
-  ok = std::fclose(f) == 0 && ok;
-  if (!ok) {
-    const int e = errno;
+  TiffMessages m;
+  TiffPtr tp = open_tiff(path, big ? "w8" : "w", m);
+  if (!tp) {
     std::remove(path.c_str());
-    throw OutputError(path + ": cannot write (" + std::string(std::strerror(e)) + ")");
+    throw OutputError(path + ": cannot create (" + m.error + ")");
   }
+  TIFF* tif = tp.get();
+  const auto nb = static_cast<std::uint16_t>(L.nb);
+  bool ok = TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, static_cast<std::uint32_t>(L.w)) &&
+            TIFFSetField(tif, TIFFTAG_IMAGELENGTH, static_cast<std::uint32_t>(L.h)) &&
+            TIFFSetField(tif, TIFFTAG_BITSPERSAMPLE, 32) && TIFFSetField(tif, TIFFTAG_SAMPLESPERPIXEL, nb) &&
+            TIFFSetField(tif, TIFFTAG_SAMPLEFORMAT, SAMPLEFORMAT_IEEEFP) &&
+            TIFFSetField(tif, TIFFTAG_COMPRESSION, COMPRESSION_ADOBE_DEFLATE) &&
+            TIFFSetField(tif, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK) &&
+            TIFFSetField(tif, TIFFTAG_PLANARCONFIG, PLANARCONFIG_SEPARATE);
+  if (ok && t.libtiff_codec) ok = TIFFSetField(tif, TIFFTAG_ZIPQUALITY, level);
+  if (ok && L.nb > 1) {
+    const std::vector<std::uint16_t> extra(L.nb - 1, EXTRASAMPLE_UNSPECIFIED);
+    ok = TIFFSetField(tif, TIFFTAG_EXTRASAMPLES, static_cast<std::uint16_t>(extra.size()), extra.data());
+  }
+  if (ok && L.tiled)
+    ok = TIFFSetField(tif, TIFFTAG_TILEWIDTH, static_cast<std::uint32_t>(L.bw)) &&
+         TIFFSetField(tif, TIFFTAG_TILELENGTH, static_cast<std::uint32_t>(L.bh));
+  else if (ok)
+    ok = TIFFSetField(tif, TIFFTAG_ROWSPERSTRIP, static_cast<std::uint32_t>(L.bh));
+  if (ok)
+    ok = TIFFSetField(tif, TIFFTAG_GEOPIXELSCALE, 3, t.pixel_scale) && TIFFSetField(tif, TIFFTAG_GEOTIEPOINTS, 6, t.tiepoint);
+  if (ok && !t.gdal_metadata.empty()) ok = TIFFSetField(tif, kTagGdalMetadata, t.gdal_metadata.c_str());
+  if (ok && !t.gdal_nodata.empty()) ok = TIFFSetField(tif, kTagGdalNodata, t.gdal_nodata.c_str());
+  if (!ok) fail_write(path, m, "a tag was refused");
+  write_geokeys(tif, path, t.geokeys, m);
+  // The blocks in file order (band after band). An empty one is not written: libtiff leaves its
+  // offset and byte count 0 (a sparse file).
+  for (std::size_t s = 0; s < out.size(); ++s) {
+    const auto& z = out[s];
+    if (z.empty()) continue;
+    const auto n = static_cast<tmsize_t>(z.size());
+    auto* data = const_cast<std::uint8_t*>(z.data());
+    const auto block = static_cast<std::uint32_t>(s);
+    tmsize_t wrote;
+    if (t.libtiff_codec)
+      wrote = L.tiled ? TIFFWriteEncodedTile(tif, block, data, n) : TIFFWriteEncodedStrip(tif, block, data, n);
+    else
+      wrote = L.tiled ? TIFFWriteRawTile(tif, block, data, n) : TIFFWriteRawStrip(tif, block, data, n);
+    if (wrote < 0 || (!t.libtiff_codec && wrote != n)) fail_write(path, m, std::string(std::strerror(errno)));
+  }
+  if (!TIFFWriteDirectory(tif)) fail_write(path, m, std::string(std::strerror(errno)));
+  // TIFFClose flushes; libtiff reports a failed write through the handler.
+  TIFFFlush(tif);
+  tp.reset();
+  if (!m.error.empty()) fail_write(path, m, "");
 }
 }  // namespace
 

@@ -1,10 +1,10 @@
-// A small writer of float32 GeoTIFFs as GDAL writes them (planar, DEFLATE strips, GDAL's metadata
-// and nodata tags), with the strips compressed as tasks a WorkShare may spread over threads.
-//
-// Why not GDAL's own writer: it compresses every strip on one thread when the dataset closes, and
-// that was the longest single piece at the end of a run (22 of the 44 ms the 8-pass bench spends
-// writing products on one thread; docs/performance.md). GDAL reads these files
-// (gdalinfo, QGIS); the tests read them back through it. `merge` reads them with tiff_reader.hpp.
+// A writer of float32 GeoTIFFs as GDAL writes them (planar, DEFLATE strips or sparse tiles, GDAL's
+// metadata and nodata tags, GeoKeys), through libtiff (the directory, BigTIFF, the file) and
+// libgeotiff (the GeoKey directory). The strips and tiles are compressed with libdeflate as tasks a
+// WorkShare may spread over threads, and handed to libtiff already compressed
+// (TIFFWriteRawStrip/TIFFWriteRawTile): libtiff's own codec compresses each block as it is
+// written, on the writing thread (docs/performance.md has the comparison and the command).
+// GDAL reads these files (gdalinfo, QGIS); `merge` reads them with tiff_reader.hpp.
 #pragma once
 
 #include <cstdint>
@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "pcdp/work_share.hpp"
+#include "tiff_format.hpp"
 
 namespace pcdp::io::detail {
 
@@ -29,6 +30,11 @@ struct FloatTiff {
   /// Bands filled together, in band order (sizes summing to `bands`); empty: one band a group.
   /// A source whose cells hold several bands' values is then read once per group, not per band.
   std::vector<int> groups;
+  /// The GeoKeys (tiff_writer.hpp's caller decides them: geotiff_crs.hpp); model 0: none written.
+  GeoKeys geokeys;
+  /// Compress with libtiff's own DEFLATE codec at `level` as the blocks are written (one thread),
+  /// not with libdeflate in the WorkShare's tasks: only for the comparison in docs/performance.md.
+  bool libtiff_codec = false;
 };
 
 /// Fills the planes of bands first .. first + planes.size() - 1 (one group): width * height
@@ -38,7 +44,7 @@ using PlaneFill = std::function<void(int first, std::vector<std::vector<float>>&
 /// Writes the raster to `path` (the caller renames it into place). One task per group of bands:
 /// fill its planes, DEFLATE their strips at `level` (1 .. 12, libdeflate's levels). At most one
 /// group's planes per running task are in memory, plus the compressed strips. The bytes do not
-/// depend on which thread ran which task. Throws std::runtime_error naming the path.
+/// depend on which thread ran which task. Throws OutputError (libtiff's message) or std::runtime_error naming the path.
 void write_float_tiff(const std::string& path, const FloatTiff& t, int level, const PlaneFill& fill,
                       WorkShare& share);
 

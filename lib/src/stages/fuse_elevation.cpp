@@ -116,8 +116,8 @@ void fuse_pass(ElevationGrid& grid, const Pass& pass, const FuseElevationParams&
 namespace {
 class FuseElevationStage final : public Stage {
  public:
-  FuseElevationStage(FuseElevationParams p, double fallback_var, std::string name)
-      : params_(p), fallback_var_(fallback_var), grid_(make_elevation_grid(p)), name_(std::move(name)) {}
+  FuseElevationStage(FuseElevationParams p, double fallback_var, std::string name, std::string crs)
+      : params_(p), fallback_var_(fallback_var), grid_(make_elevation_grid(p)), name_(std::move(name)), crs_(std::move(crs)) {}
   bool split() const override { return true; }
   // The samples this pass adds, computed on the worker (copied, since later stages may still
   // change the pass); in order, the grid only looks their cells up and sums.
@@ -140,11 +140,13 @@ class FuseElevationStage final : public Stage {
     check_extent(b, pass.source);
     fuse_pass(grid_, pass, params_, fallback_var_);
   }
-  // Two products, written at once when the run has threads: elevation.tif (and the report's
+  // Two parts, written at once when the run has threads: elevation.tif and its merge state (and the report's
   // cell count), then elevation.png. Both only read the grid.
   std::size_t finish_parts() const override { return params_.png ? 2 : 1; }
   std::vector<std::string> products() const override {
-    return params_.png ? std::vector<std::string>{"elevation.tif", "elevation.png"} : std::vector<std::string>{"elevation.tif"};
+    // elevation.state.tif: the merge state beside elevation.tif (committed with it, as a set).
+    return params_.png ? std::vector<std::string>{"elevation.tif", "elevation.state.tif", "elevation.png"}
+                       : std::vector<std::string>{"elevation.tif", "elevation.state.tif"};
   }
   void finish(OutputSink& sink, StageReport& report) override {
     for (std::size_t p = 0; p < finish_parts(); ++p) finish_part(p, sink, report, WorkShare::serial());
@@ -166,7 +168,8 @@ class FuseElevationStage final : public Stage {
       report.metrics["write_seconds"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       return;
     }
-    const std::size_t cells = io::write_elevation_geotiff(grid_, sink.staged_path("elevation.tif"), params_.deflate_level, share);
+    const std::size_t cells = io::write_elevation_geotiff(grid_, sink.staged_path("elevation.tif"), params_.deflate_level,
+                                                          share, crs_, sink.staged_path("elevation.state.tif"));
     report.metrics["write_seconds"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     report.metrics["cells"] = static_cast<double>(cells);
   }
@@ -190,6 +193,7 @@ class FuseElevationStage final : public Stage {
   ElevationGrid grid_;
   std::string name_;
   CellBounds bounds_;
+  std::string crs_;  ///< the pipeline's `crs` (normalised), elevation.tif's GeoKeys
   struct Work final : StageWork {
     std::vector<ElevationSample> samples;
     CellBounds bounds;
@@ -227,7 +231,7 @@ StageInfo fuse_elevation_stage_info() {
             p.origin_z = ctx.map_origin.z();
             p.stage = "'" + sc.name + "' (fuse_elevation)";
             const double s = ctx.config->sensor.range_sigma;
-            return std::make_unique<FuseElevationStage>(p, s > 0 ? s * s : 1e-4, sc.name);
+            return std::make_unique<FuseElevationStage>(p, s > 0 ? s * s : 1e-4, sc.name, ctx.config->crs);
           }};
 }
 
