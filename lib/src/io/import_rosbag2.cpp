@@ -200,6 +200,8 @@ void for_each_message(Db& db, const std::map<long long, Topic>& topics, const st
     MsgRef ref{&db.path(), &topic, index++, sqlite3_column_int64(st.get(), 0), sqlite3_column_int64(st.get(), 1)};
     if (sqlite3_column_type(st.get(), 1) != SQLITE_INTEGER)
       throw InputError(ref.where() + ": the timestamp is not an integer (ns)");
+    if (ref.t_ns < 0 || ref.t_ns > kMaxBagTimeNs)
+      throw InputError(ref.where() + ": the timestamp is outside 0 .. 4e18 ns");
     const int type = sqlite3_column_type(st.get(), 2);
     if (type != SQLITE_BLOB && type != SQLITE_NULL) throw InputError(ref.where() + ": the data is not a blob");
     const void* blob = sqlite3_column_blob(st.get(), 2);

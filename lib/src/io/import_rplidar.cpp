@@ -107,8 +107,17 @@ void TiltGeometry::check(const std::string& what) const {
 ImportedRplidar build_tilt_passes(const std::vector<TiltScan>& scans, const std::vector<TiltSample>& tilt,
                                   const RplidarImportParams& p, const std::string& source) {
   if (tilt.size() < 2) throw InputError(source + ": fewer than two tilt readings");
-  for (std::size_t k = 1; k < tilt.size(); ++k)
-    if (tilt[k].t_ns < tilt[k - 1].t_ns) throw InputError(source + ": tilt reading " + std::to_string(k) + " goes back in time");
+  for (std::size_t k = 0; k < tilt.size(); ++k) {
+    if (tilt[k].t_ns < 0 || tilt[k].t_ns > kMaxBagTimeNs)
+      throw InputError(source + ": tilt reading " + std::to_string(k) + ": bag time " + std::to_string(tilt[k].t_ns) +
+                       " ns is outside 0 .. 4e18");
+    if (k > 0 && tilt[k].t_ns < tilt[k - 1].t_ns)
+      throw InputError(source + ": tilt reading " + std::to_string(k) + " goes back in time");
+  }
+  for (const TiltScan& s : scans)
+    if (s.t_ns < 0 || s.t_ns > kMaxBagTimeNs)
+      throw InputError(source + ": scan " + std::to_string(s.line) + ": bag time " + std::to_string(s.t_ns) +
+                       " ns is outside 0 .. 4e18");
   const auto servo_at = [&](long long t, double& deg) {
     if (t < tilt.front().t_ns || t > tilt.back().t_ns) return false;
     const auto it = std::upper_bound(tilt.begin(), tilt.end(), t,

@@ -63,6 +63,9 @@ struct TiltScan {
   std::vector<float> intensity;   ///< one per beam
 };
 
+/// Bag times beyond this (year 2096) are refused: the time arithmetic stays far from overflow.
+inline constexpr long long kMaxBagTimeNs = 4'000'000'000'000'000'000LL;
+
 /// One tilt reading at its bag time (time order, non-decreasing).
 struct TiltSample {
   long long t_ns = 0;
@@ -86,7 +89,8 @@ struct ImportedRplidar {
 /// starts no earlier than the previous sweep's end), the tilt reading interpolated linearly at each
 /// beam's time (scans with a beam outside the tilt stream are dropped), one nod per line (the
 /// reading at the line's last beam, through `p.geometry`), a new pass where the tilt reverses (at
-/// least p.min_pass_lines lines). `scans` in arrival order; `tilt` has at least two samples.
+/// least p.min_pass_lines lines). `scans` in arrival order; `tilt` has at least two samples; all
+/// times within 0 .. kMaxBagTimeNs.
 /// `source` names the input in the error thrown when no scan lies within the tilt stream.
 ImportedRplidar build_tilt_passes(const std::vector<TiltScan>& scans, const std::vector<TiltSample>& tilt,
                                   const RplidarImportParams& p, const std::string& source);
