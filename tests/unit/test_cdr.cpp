@@ -6,12 +6,16 @@
 #include <cmath>
 #include <functional>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
 #include "io/cdr.hpp"
 #include "pcdp/errors.hpp"
 #include "pcdp/io/import_rplidar.hpp"
+#include "pcdp_test_paths.hpp"
 
 using namespace pcdp;
 using namespace pcdp::io;
@@ -217,4 +221,31 @@ TEST(TiltGeometry, DefaultsAreTheRplidarRigAndTheOptionsCompose) {
   h.scale = 1;
   h.sign = 0.5;
   EXPECT_THROW(h.check("t"), ConfigError);
+}
+
+// The fuzz target's seeds (tests/fuzz/corpus/rosbag2_cdr: first byte = message type) are valid
+// messages: each decodes, in every ordinary build.
+TEST(Cdr, FuzzSeedsDecode) {
+  std::size_t n = 0;
+  for (const auto& e : std::filesystem::directory_iterator(std::string(PCDP_SOURCE_DIR) + "/tests/fuzz/corpus/rosbag2_cdr")) {
+    std::ifstream in(e.path(), std::ios::binary);
+    const std::vector<std::uint8_t> b((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    ASSERT_FALSE(b.empty());
+    const std::uint8_t* m = b.data() + 1;
+    const std::size_t size = b.size() - 1;
+    static const char* const kNumbers[] = {"std_msgs/msg/Float32", "std_msgs/msg/Float64", "std_msgs/msg/Int8",
+                                           "std_msgs/msg/Int16",   "std_msgs/msg/Int32",   "std_msgs/msg/Int64",
+                                           "std_msgs/msg/UInt16",  "std_msgs/msg/UInt64"};
+    const std::string err = error_of([&] {
+      switch (b[0] % 4) {
+        case 0: cdr::decode_laser_scan(m, size); break;
+        case 1: cdr::decode_joint_state(m, size); break;
+        case 2: cdr::decode_odometry(m, size); break;
+        default: cdr::decode_number(kNumbers[(b[0] / 4) % 8], m, size); break;
+      }
+    });
+    EXPECT_EQ(err, "(no error)") << e.path();
+    ++n;
+  }
+  EXPECT_GE(n, 8u);
 }
