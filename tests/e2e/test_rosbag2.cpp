@@ -138,6 +138,9 @@ TEST(Rosbag2, TheTiltGeometryOptionsApplyToBothImporters) {
   EXPECT_EQ(none.exit_code, 2);
   EXPECT_NE(none.err.find("--scan-topic /lidar: no such topic"), std::string::npos) << none.err;
   EXPECT_NE(none.err.find("/lidar_servo_angle (std_msgs/msg/Int32)"), std::string::npos) << none.err;
+  const auto other = run_cli({"import", "cloud", "x.pcd", "--output-dir", dir + "/x", "--tilt-zero", "0"});
+  EXPECT_EQ(other.exit_code, 2);
+  EXPECT_NE(other.err.find("import cloud: --tilt-zero is for rplidar and rosbag2"), std::string::npos) << other.err;
   EXPECT_FALSE(fs::exists(dir + "/x"));
 }
 

@@ -193,6 +193,9 @@ int main(int argc, char** argv) {
     if (*evaluate) return cli::cmd_evaluate(ev_truth, ev_run, ev_json, ev_quiet);
     if (*docs) return cli::cmd_docs();
     if (*bch) return cli::cmd_bench(bench);
+    if (*imp && imp_format != "rplidar" && imp_format != "rosbag2")
+      for (const char* o : {"--scan-topic", "--tilt-topic", "--odom-topic", "--tilt-zero", "--tilt-sign", "--tilt-scale", "--axis-offset"})
+        if (imp->count(o) > 0) throw ConfigError(std::string("import ") + imp_format + ": " + o + " is for rplidar and rosbag2");
     if (*imp && (imp_format == "rplidar" || imp_format == "rosbag2")) {
       imp_tilt.passes.geometry.sign = imp_sign;
       return cli::cmd_import_tilt(imp_format, imp_in, imp_out, imp_tilt);
