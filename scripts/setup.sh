@@ -10,8 +10,9 @@ PACKAGES=(
   cmake ninja-build g++ pkg-config
   libeigen3-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  libpcl-dev liboctomap-dev libpng-dev libdeflate-dev zlib1g-dev
+  libpcl-dev liboctomap-dev libpng-dev libdeflate-dev zlib1g-dev  # zlib: the GeoTIFF reader inflates a row at a time
   libtiff-dev libgeotiff-dev libproj-dev  # elevation.tif: libtiff, its GeoKeys (libgeotiff), a WKT `crs` checked (PROJ)
+  libsqlite3-dev  # import rosbag2: ROS 2 bags (sqlite3 storage)
   libgdal-dev gdal-bin  # the tests only: an independent reader of the GeoTIFFs we write (and gdalinfo)
 )
 

@@ -541,22 +541,10 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
     }
     return 0;
   }
-  if (format == "rplidar") {
-    if (inputs.size() != 1)
-      throw ConfigError("import rplidar: expected one folder (with scans.csv, beams.csv, servo.csv), got " +
-                        std::to_string(inputs.size()) + " inputs");
-    io::StagedOutputs staged(out_dir);
-    const io::ImportedRplidar r = io::import_rplidar(inputs[0]);
-    write_passes(r.passes, staged.staging_dir());
-    staged.commit();
-    std::printf("imported %zu LaserScan(s) (%zu dropped: empty or outside the servo stream), %zu returns in %zu pass(es) "
-                "-> %s (pass_*.pcd; no pose file: T_M_V = identity)\n",
-                r.scans, r.dropped_scans, r.beams, r.passes.size(), out_dir.c_str());
-    return 0;
-  }
+  if (format == "rplidar" || format == "rosbag2") return cmd_import_tilt(format, inputs, out_dir, {});
   if (format != "3dtk")
-    throw ConfigError("import: unknown format '" + format + "'" + did_you_mean(format, {"3dtk", "rplidar", "octomap", "cloud"}) +
-                      "; formats: 3dtk, rplidar, octomap, cloud");
+    throw ConfigError("import: unknown format '" + format + "'" + did_you_mean(format, {"3dtk", "rplidar", "rosbag2", "octomap", "cloud"}) +
+                      "; formats: 3dtk, rplidar, rosbag2, octomap, cloud");
   if (poses != "odometry" && poses != "frames")
     throw ConfigError("import 3dtk: --poses must be odometry or frames, not '" + poses + "'");
   io::StagedOutputs staged(out_dir);
@@ -566,6 +554,41 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
   staged.commit();
   std::printf("imported %zu 3DTK scan(s), %zu returns, %s poses -> %s (pass_*.pcd, poses.csv; rpy_order xyz)\n",
               r.passes.size(), n, poses.c_str(), out_dir.c_str());
+  return 0;
+}
+
+int cmd_import_tilt(const std::string& format, const std::vector<std::string>& inputs, const std::string& out_dir,
+                    const io::Rosbag2ImportParams& p) {
+  if (inputs.size() != 1)
+    throw ConfigError("import " + format + ": expected one " +
+                      (format == "rplidar" ? "folder (with scans.csv, beams.csv, servo.csv)"
+                                           : "bag (a folder with metadata.yaml and .db3 files, or a .db3 file)") +
+                      ", got " + std::to_string(inputs.size()) + " inputs");
+  if (format == "rplidar" && !(p.scan_topic.empty() && p.tilt_topic.empty() && p.odom_topic.empty()))
+    throw ConfigError("import rplidar: --scan-topic, --tilt-topic and --odom-topic are for rosbag2");
+  io::StagedOutputs staged(out_dir);
+  io::ImportedRosbag2 b;
+  if (format == "rplidar")
+    b.passes = io::import_rplidar(inputs[0], p.passes);
+  else
+    b = io::import_rosbag2(inputs[0], p);
+  const io::ImportedRplidar& r = b.passes;
+  write_passes(r.passes, staged.staging_dir());
+  if (!b.poses.empty())
+    sim::write_pose_csv(b.poses, RpyOrder::kXyz, (std::filesystem::path(staged.staging_dir()) / "poses.csv").string());
+  staged.commit();
+  if (format == "rosbag2")
+    std::printf("topics: scans %s, tilt %s (%s, %zu readings), poses %s\n", b.scan_topic.c_str(), b.tilt_topic.c_str(),
+                b.tilt_type.c_str(), b.tilt_messages,
+                b.odom_topic.empty() ? "none" : (b.odom_topic + " (" + std::to_string(b.poses.size()) + ")").c_str());
+  std::printf("imported %zu LaserScan(s) (%zu dropped: empty or outside the tilt stream), %zu returns in %zu pass(es) "
+              "-> %s (pass_*.pcd; %s)\n",
+              r.scans, r.dropped_scans, r.beams, r.passes.size(), out_dir.c_str(),
+              b.poses.empty() ? "no pose file: T_M_V = identity" : "poses.csv, rpy_order xyz");
+  const io::TiltGeometry& g = p.passes.geometry;
+  std::printf("tilt: nod = %g * %g deg * (reading - %g); the laser is %g m above the tilt axis: put mount z: %g in the "
+              "pipeline\n",
+              -g.sign, g.scale, g.zero, g.axis_offset, g.axis_offset);
   return 0;
 }
 

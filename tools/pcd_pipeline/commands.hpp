@@ -5,6 +5,8 @@
 #include <string>
 #include <vector>
 
+#include "pcdp/io/import_rosbag2.hpp"
+
 namespace pcdp {
 struct NodPlanParams;
 struct EdgeParams;
@@ -46,6 +48,10 @@ int cmd_docs();
 int cmd_import(const std::string& format, const std::vector<std::string>& inputs, const std::string& out_dir,
                const std::string& poses, const std::string& viewpoint = "", double max_residual = 0.02,
                const std::string& nod_origin = "");
+/// `import rplidar` (CSV export) and `import rosbag2` (ROS 2 bag): LaserScan + tilt stream, with the
+/// shared tilt geometry in `p.passes.geometry` (rplidar uses only that).
+int cmd_import_tilt(const std::string& format, const std::vector<std::string>& inputs, const std::string& out_dir,
+                    const io::Rosbag2ImportParams& p);
 int cmd_simulate(const std::string& scene, const std::string& output_dir, bool quiet);
 
 }  // namespace pcdp::cli

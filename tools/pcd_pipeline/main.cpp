@@ -136,9 +136,11 @@ int main(int argc, char** argv) {
   std::vector<std::string> imp_in;
   std::string imp_viewpoint, imp_nod_origin;
   double imp_residual = 0.02;
-  CLI::App* imp = app.add_subcommand("import", "convert scans of other tools to raw passes and a pose file (formats: 3dtk, rplidar, octomap, cloud)");
+  io::Rosbag2ImportParams imp_tilt;  // rplidar, rosbag2
+  int imp_sign = -1;
+  CLI::App* imp = app.add_subcommand("import", "convert scans of other tools to raw passes and a pose file (formats: 3dtk, rplidar, rosbag2, octomap, cloud)");
   imp->add_option("format", imp_format,
-                  "3dtk: 3DTK uos scans (.3d with .pose/.frames beside them); rplidar: a folder of scans/beams/servo CSV; "
+                  "3dtk: 3DTK uos scans (.3d with .pose/.frames beside them); rplidar: a folder of scans/beams/servo CSV; rosbag2: a ROS 2 bag (sqlite3) of LaserScan + tilt; "
                   "octomap: scan.dat (ASCII, NODE lines) or .graph (ScanGraph); cloud: Cartesian .pcd or .ply with a viewpoint")
       ->required();
   imp->add_option("inputs", imp_in, "input files")->required();
@@ -150,6 +152,20 @@ int main(int argc, char** argv) {
   imp->add_option("--max-residual", imp_residual, "octomap, cloud: m; a scan line whose points do not rebuild within this is imported point by point")
       ->capture_default_str()
       ->check(CLI::Range(1e-6, 1.0));
+  imp->add_option("--scan-topic", imp_tilt.scan_topic, "rosbag2: the LaserScan topic (default: the bag's only one)");
+  imp->add_option("--tilt-topic", imp_tilt.tilt_topic,
+                  "rosbag2: the tilt topic, a std_msgs number or TOPIC:JOINT of a JointState (default: the only one)");
+  imp->add_option("--odom-topic", imp_tilt.odom_topic, "rosbag2: nav_msgs/Odometry topic for poses.csv (default: the only one, if any)");
+  imp->add_option("--tilt-zero", imp_tilt.passes.geometry.zero, "rplidar, rosbag2: the tilt reading at level (JointState: degrees)")
+      ->capture_default_str();
+  imp->add_option("--tilt-sign", imp_sign, "rplidar, rosbag2: ROS pitch about y = sign * scale * (reading - zero); nod up = -pitch")
+      ->capture_default_str()
+      ->check(CLI::IsMember({-1, 1}));
+  imp->add_option("--tilt-scale", imp_tilt.passes.geometry.scale, "rplidar, rosbag2: degrees per unit of the reading")
+      ->capture_default_str();
+  imp->add_option("--axis-offset", imp_tilt.passes.geometry.axis_offset,
+                  "rplidar, rosbag2: m, the laser above the tilt axis (printed as the pipeline's mount z)")
+      ->capture_default_str();
   cli::BenchArgs bench;
   CLI::App* bch = app.add_subcommand("bench", "time the chain stage by stage against PCL, OctoMap and a plain loop, same data");
   bch->add_option("--scene", bench.scene, "scene to simulate")->capture_default_str();
@@ -177,6 +193,13 @@ int main(int argc, char** argv) {
     if (*evaluate) return cli::cmd_evaluate(ev_truth, ev_run, ev_json, ev_quiet);
     if (*docs) return cli::cmd_docs();
     if (*bch) return cli::cmd_bench(bench);
+    if (*imp && imp_format != "rplidar" && imp_format != "rosbag2")
+      for (const char* o : {"--scan-topic", "--tilt-topic", "--odom-topic", "--tilt-zero", "--tilt-sign", "--tilt-scale", "--axis-offset"})
+        if (imp->count(o) > 0) throw ConfigError(std::string("import ") + imp_format + ": " + o + " is for rplidar and rosbag2");
+    if (*imp && (imp_format == "rplidar" || imp_format == "rosbag2")) {
+      imp_tilt.passes.geometry.sign = imp_sign;
+      return cli::cmd_import_tilt(imp_format, imp_in, imp_out, imp_tilt);
+    }
     if (*imp) return cli::cmd_import(imp_format, imp_in, imp_out, imp_poses, imp_viewpoint, imp_residual, imp_nod_origin);
     if (*mrg) return cli::cmd_merge(mg_in, mg_out, mg_png, mg_threads);
     if (*calr) return cli::cmd_calibrate_range(cr_csv);
