@@ -136,10 +136,12 @@ int main(int argc, char** argv) {
   std::vector<std::string> imp_in;
   std::string imp_viewpoint, imp_nod_origin;
   double imp_residual = 0.02;
-  CLI::App* imp = app.add_subcommand("import", "convert scans of other tools to raw passes and a pose file (formats: 3dtk, rplidar, octomap, cloud)");
+  std::size_t imp_beams = 0;
+  CLI::App* imp = app.add_subcommand("import", "convert scans of other tools to raw passes and a pose file (formats: 3dtk, rplidar, octomap, cloud, carmen)");
   imp->add_option("format", imp_format,
                   "3dtk: 3DTK uos scans (.3d with .pose/.frames beside them); rplidar: a folder of scans/beams/servo CSV; "
-                  "octomap: scan.dat (ASCII, NODE lines) or .graph (ScanGraph); cloud: Cartesian .pcd or .ply with a viewpoint")
+                  "octomap: scan.dat (ASCII, NODE lines) or .graph (ScanGraph); cloud: Cartesian .pcd or .ply with a viewpoint; "
+                  "carmen: a CARMEN log (.log or .log.gz) of FLASER / ROBOTLASER1 messages, one planar pass per message")
       ->required();
   imp->add_option("inputs", imp_in, "input files")->required();
   imp->add_option("--output-dir", imp_out, "folder for pass_*.pcd and poses.csv")->required()->check(output_path);
@@ -150,6 +152,9 @@ int main(int argc, char** argv) {
   imp->add_option("--max-residual", imp_residual, "octomap, cloud: m; a scan line whose points do not rebuild within this is imported point by point")
       ->capture_default_str()
       ->check(CLI::Range(1e-6, 1.0));
+  imp->add_option("--beams-per-line", imp_beams,
+                  "3dtk: beams per scan line when the geometry cannot tell (default: read from the points' bearings)")
+      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 24));
   cli::BenchArgs bench;
   CLI::App* bch = app.add_subcommand("bench", "time the chain stage by stage against PCL, OctoMap and a plain loop, same data");
   bch->add_option("--scene", bench.scene, "scene to simulate")->capture_default_str();
@@ -177,7 +182,8 @@ int main(int argc, char** argv) {
     if (*evaluate) return cli::cmd_evaluate(ev_truth, ev_run, ev_json, ev_quiet);
     if (*docs) return cli::cmd_docs();
     if (*bch) return cli::cmd_bench(bench);
-    if (*imp) return cli::cmd_import(imp_format, imp_in, imp_out, imp_poses, imp_viewpoint, imp_residual, imp_nod_origin);
+    if (*imp && imp_format == "carmen") return cli::cmd_import_carmen(imp_in, imp_out);
+    if (*imp) return cli::cmd_import(imp_format, imp_in, imp_out, imp_poses, imp_viewpoint, imp_residual, imp_nod_origin, imp_beams);
     if (*mrg) return cli::cmd_merge(mg_in, mg_out, mg_png, mg_threads);
     if (*calr) return cli::cmd_calibrate_range(cr_csv);
     if (*calm) return cli::cmd_calibrate_mount(cm_args, cm_scans);
