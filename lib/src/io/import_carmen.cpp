@@ -167,52 +167,59 @@ Message parse_robotlaser(const Fields& f, std::size_t lineno) {
 /// Reads the (gzip or plain) file line by line through zlib.
 class LineReader {
  public:
-  explicit LineReader(const std::string& path) : path_(path), gz_(gzopen(path.c_str(), "rb")) {
+  explicit LineReader(const std::string& path) : path_(path), gz_(gzopen(path.c_str(), "rb")), chunk_(1u << 17) {
     if (!gz_) throw InputError(path + ": cannot open the CARMEN log");
-    gzbuffer(gz_, 1u << 17);
   }
   ~LineReader() { gzclose(gz_); }
   LineReader(const LineReader&) = delete;
   LineReader& operator=(const LineReader&) = delete;
 
+  /// The next line without its newline; false at the end of the file.
   bool next(std::string& line) {
-    line.clear();
-    char buf[1 << 16];
     for (;;) {
-      if (!gzgets(gz_, buf, sizeof buf)) {
-        check_error();
-        return !line.empty();
-      }
-      const std::size_t len = std::char_traits<char>::length(buf);
-      line.append(buf, len);
-      if (line.size() > kMaxLineBytes)
-        throw InputError(path_ + ":" + std::to_string(lineno_ + 1) + ": a line longer than " +
-                         std::to_string(kMaxLineBytes >> 20) + " MiB is not a CARMEN message");
-      if (len > 0 && buf[len - 1] == '\n') {
-        line.pop_back();
+      const std::size_t nl = buf_.find('\n', pos_);
+      if (nl != std::string::npos || (eof_ && pos_ < buf_.size())) {
+        const std::size_t end = nl != std::string::npos ? nl : buf_.size();
+        line.assign(buf_, pos_, end - pos_);
+        pos_ = end + 1;
+        ++lineno_;
+        if (line.find('\0') != std::string::npos)
+          throw InputError(path_ + ":" + std::to_string(lineno_) + ": a NUL byte: not a text CARMEN log");
         return true;
       }
-      if (len + 1 < sizeof buf) {  // a NUL byte inside the line or the end of the file
-        if (gzeof(gz_)) return true;
-        throw InputError(path_ + ":" + std::to_string(lineno_ + 1) + ": a NUL byte: not a text CARMEN log");
+      if (eof_) return false;
+      buf_.erase(0, pos_);
+      pos_ = 0;
+      if (buf_.size() > kMaxLineBytes)
+        throw InputError(path_ + ":" + std::to_string(lineno_ + 1) + ": a line longer than " +
+                         std::to_string(kMaxLineBytes >> 20) + " MiB is not a CARMEN message");
+      const int got = gzread(gz_, chunk_.data(), static_cast<unsigned>(chunk_.size()));
+      if (got <= 0) {
+        check_error();
+        eof_ = true;
+      } else {
+        buf_.append(chunk_.data(), static_cast<std::size_t>(got));
       }
     }
   }
-  std::size_t& lineno() { return lineno_; }
+  std::size_t lineno() const { return lineno_; }
 
  private:
   void check_error() {
     int err = Z_OK;
     const char* msg = gzerror(gz_, &err);
-    if (err != Z_OK && err != Z_BUF_ERROR)
-      throw InputError(path_ + ": after line " + std::to_string(lineno_) + ": the gzip stream is corrupt (" +
-                       (msg ? msg : "zlib error") + ")");
     if (err == Z_BUF_ERROR)
       throw InputError(path_ + ": after line " + std::to_string(lineno_) + ": the gzip stream ends early (truncated file)");
+    if (err != Z_OK)
+      throw InputError(path_ + ": after line " + std::to_string(lineno_) + ": the gzip stream is corrupt (" +
+                       (msg ? msg : "zlib error") + ")");
   }
   std::string path_;
   gzFile gz_;
-  std::size_t lineno_ = 0;
+  std::vector<char> chunk_;
+  std::string buf_;
+  std::size_t pos_ = 0, lineno_ = 0;
+  bool eof_ = false;
 };
 
 }  // namespace
@@ -225,7 +232,7 @@ ImportedCarmen import_carmen(const std::string& path) {
     LineReader in(path);
     std::string line;
     while (in.next(line)) {
-      const std::size_t lineno = ++in.lineno();
+      const std::size_t lineno = in.lineno();
       const std::size_t b = line.find_first_not_of(" \t\r");
       if (b == std::string::npos || line[b] == '#') continue;
       const std::string_view word = std::string_view(line).substr(b, line.find_first_of(" \t\r", b) - b);
