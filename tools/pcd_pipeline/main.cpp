@@ -182,7 +182,7 @@ int main(int argc, char** argv) {
     if (*evaluate) return cli::cmd_evaluate(ev_truth, ev_run, ev_json, ev_quiet);
     if (*docs) return cli::cmd_docs();
     if (*bch) return cli::cmd_bench(bench);
-    if (*imp && imp_format == "carmen") return cli::cmd_import_carmen(imp_in, imp_out);
+    if (*imp && imp_format == "carmen" && imp_beams == 0) return cli::cmd_import_carmen(imp_in, imp_out);
     if (*imp) return cli::cmd_import(imp_format, imp_in, imp_out, imp_poses, imp_viewpoint, imp_residual, imp_nod_origin, imp_beams);
     if (*mrg) return cli::cmd_merge(mg_in, mg_out, mg_png, mg_threads);
     if (*calr) return cli::cmd_calibrate_range(cr_csv);
