@@ -3,11 +3,14 @@
 // original points back (within the documented max_residual).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <unordered_map>
 
 #include "pcdp/errors.hpp"
+#include "pcdp/io/import_3dtk.hpp"
 #include "pcdp/io/import_scans.hpp"
 #include "pcdp/io/pcd.hpp"
 #include "pcdp/stages/register.hpp"
@@ -187,4 +190,127 @@ TEST(ImportScans, TruncatedGraphNamesTheByte) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("cut.graph: byte 8: the file ends inside the points"), std::string::npos) << e.what();
   }
+}
+
+// ---- 3DTK: the beams per line come from the scan's geometry --------------------------------
+
+namespace {
+/// The InputError message of `f`, or "(no error)".
+template <class F>
+std::string input_error_of(F&& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+/// A synthetic 3DTK uos scan of `lines` x `beams` (bearings over 180 degrees, both ends, from the
+/// right), the nod rising by 1 degree a line from -20 degrees; ranges r(b, l) in metres; point
+/// `sentinel` is the 32.767 m no-return and points in `zeros` are missing (0 0 0).
+struct Synthetic3d {
+  std::size_t beams, lines;
+  std::vector<double> range, bearing, nod;  // truth, per point / per line
+};
+
+Synthetic3d write_synthetic_3d(const std::string& path, std::size_t beams, std::size_t lines, const std::string& header,
+                               const std::vector<std::size_t>& zeros, std::size_t sentinel) {
+  Synthetic3d s{beams, lines, {}, {}, {}};
+  std::string text = header;
+  char buf[128];
+  for (std::size_t l = 0; l < lines; ++l) {
+    const double n = (-20.0 + static_cast<double>(l)) * M_PI / 180.0;
+    s.nod.push_back(n);
+    for (std::size_t b = 0; b < beams; ++b) {
+      const std::size_t i = l * beams + b;
+      const double be = -M_PI / 2 + M_PI * static_cast<double>(b) / static_cast<double>(beams - 1);
+      double r = 3.0 + 0.5 * std::sin(3.0 * be) + 0.01 * static_cast<double>(l);
+      if (i == sentinel) r = 32.767;
+      const bool zero = std::find(zeros.begin(), zeros.end(), i) != zeros.end();
+      s.range.push_back(zero || i == sentinel ? 0.0 : r);
+      s.bearing.push_back(be);
+      const Eigen::Vector3d ours = r * Eigen::Vector3d(std::cos(be) * std::cos(n), std::sin(be), std::cos(be) * std::sin(n));
+      const Eigen::Vector3d uos = zero ? Eigen::Vector3d(Eigen::Vector3d::Zero()) : Eigen::Vector3d(Eigen::Vector3d(-ours.y(), ours.z(), ours.x()) * 100.0);
+      std::snprintf(buf, sizeof buf, "%.6f %.6f %.6f\n", uos.x(), uos.y(), uos.z());
+      text += buf;
+    }
+  }
+  test::write_text(path, text);
+  const std::string pose = path.substr(0, path.rfind('.')) + ".pose";
+  test::write_text(pose, "0 0 0\n0 0 0\n");
+  return s;
+}
+}  // namespace
+
+TEST(Import3dtk, KurtScansShow360BeamsPerLineInTheirGeometry) {
+  const std::string path = std::string(PCDP_SHARED_DIR) + "/datasets/kurt3d_3dtk_nodding/scan000.3d";
+  std::ifstream in(path);
+  std::string header;
+  std::getline(in, header);  // "360 x 225"
+  std::vector<Eigen::Vector3d> pts;
+  for (double x, y, z; in >> x >> y >> z;) pts.push_back({x, y, z});
+  ASSERT_EQ(pts.size(), 81360u);
+  EXPECT_EQ(io::beams_per_line_from_geometry(pts, path), 360u);
+  // The whole importer: 226 lines of 360 (the line numbers of scan 0 run 0..225).
+  const io::Imported3dtk r = io::import_3dtk({path}, false);
+  ASSERT_EQ(r.passes.size(), 1u);
+  EXPECT_EQ(r.passes[0].line_count(), 226u);
+  EXPECT_EQ(*std::max_element(r.passes[0].beam.begin(), r.passes[0].beam.end()), 359u);
+}
+
+TEST(Import3dtk, A181BeamScanImportsWithItsOwnBeamCount) {
+  const std::string dir = test::fresh_dir();
+  // The first point of line 3 and a mid-line point are missing: the line break is still found.
+  const std::vector<std::size_t> zeros = {3 * 181, 10 * 181 + 90};
+  const Synthetic3d s = write_synthetic_3d(dir + "/scan000.3d", 181, 40, "", zeros, 5 * 181 + 17);
+  const io::Imported3dtk r = io::import_3dtk({dir + "/scan000.3d"}, false);
+  ASSERT_EQ(r.passes.size(), 1u);
+  const Pass& p = r.passes[0];
+  ASSERT_EQ(p.size(), 181u * 40u);
+  EXPECT_EQ(p.line_count(), 40u);
+  std::size_t checked = 0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    EXPECT_EQ(p.beam[i], i % 181) << i;
+    EXPECT_EQ(p.line[i], i / 181) << i;
+    EXPECT_NEAR(p.range[i], s.range[i], 1e-5) << i;
+    EXPECT_NEAR(p.bearing[i], s.bearing[i], 1e-5) << i;  // the no-returns too (the fitted beam grid)
+    EXPECT_NEAR(p.nod[i], s.nod[i / 181], 1e-5) << i;
+    checked += s.range[i] > 0 ? 1 : 0;
+  }
+  EXPECT_EQ(checked, 181u * 40u - 3u);
+  // The same file with a "W x H" header that agrees, then one that does not.
+  write_synthetic_3d(dir + "/scan001.3d", 181, 40, "181 x 39\n", zeros, 5);
+  EXPECT_EQ(io::import_3dtk({dir + "/scan001.3d"}, false).passes[0].size(), 181u * 40u);
+  write_synthetic_3d(dir + "/scan002.3d", 181, 40, "360 x 20\n", zeros, 5);
+  EXPECT_NE(input_error_of([&] { io::import_3dtk({dir + "/scan002.3d"}, false); })
+                .find("scan002.3d:1: the header says 360 beams per line, the points' geometry 181; give the count with --beams-per-line N"),
+            std::string::npos);
+  // An explicit count wins over the header, and must divide the point count.
+  EXPECT_EQ(io::import_3dtk({dir + "/scan002.3d"}, false, 181).passes[0].line_count(), 40u);
+  EXPECT_NE(input_error_of([&] { io::import_3dtk({dir + "/scan002.3d"}, false, 180); })
+                .find("scan002.3d: 7240 points is not a whole number of 180-beam lines"),
+            std::string::npos);
+}
+
+TEST(Import3dtk, LinesOfDifferentLengthsAskForTheCount) {
+  const std::string dir = test::fresh_dir();
+  write_synthetic_3d(dir + "/scan000.3d", 181, 10, "", {}, 99999);
+  // Drop one point in the middle of line 4: that line has 180 beams.
+  std::string text = test::read_text(dir + "/scan000.3d");
+  std::size_t at = 0;
+  for (std::size_t k = 0; k < 4 * 181 + 50; ++k) at = text.find('\n', at) + 1;
+  text.erase(at, text.find('\n', at) + 1 - at);
+  test::write_text(dir + "/scan000.3d", text);
+  const std::string err = input_error_of([&] { io::import_3dtk({dir + "/scan000.3d"}, false); });
+  EXPECT_NE(err.find("scan000.3d: cannot read the beams per scan line from the geometry: most lines have 181 beams, "
+                     "but the bearing"),
+            std::string::npos)
+      << err;
+  EXPECT_NE(err.find("give the count with --beams-per-line N"), std::string::npos) << err;
+  // A scan with one direction only cannot tell either.
+  test::write_text(dir + "/flat.3d", "0 0 100\n0 0 200\n");
+  test::write_text(dir + "/flat.pose", "0 0 0\n0 0 0\n");
+  EXPECT_NE(input_error_of([&] { io::import_3dtk({dir + "/flat.3d"}, false); }).find("no two points with different bearings"),
+            std::string::npos);
 }

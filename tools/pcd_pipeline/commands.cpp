@@ -24,6 +24,7 @@
 #include "pcdp/io/atomic_file.hpp"
 #include "pcdp/io/geotiff.hpp"
 #include "pcdp/io/import_3dtk.hpp"
+#include "pcdp/io/import_carmen.hpp"
 #include "pcdp/io/import_rplidar.hpp"
 #include "pcdp/io/import_scans.hpp"
 #include "pcdp/nod_plan.hpp"
@@ -498,7 +499,10 @@ std::size_t write_passes(const std::vector<Pass>& passes, const std::string& out
 }  // namespace
 
 int cmd_import(const std::string& format, const std::vector<std::string>& inputs, const std::string& out_dir,
-               const std::string& poses, const std::string& viewpoint, double max_residual, const std::string& nod_origin) {
+               const std::string& poses, const std::string& viewpoint, double max_residual, const std::string& nod_origin,
+               std::size_t beams_per_line) {
+  if (beams_per_line != 0 && format != "3dtk")
+    throw ConfigError("import " + format + ": --beams-per-line is for 3dtk scans");
   if (format == "octomap" || format == "cloud") {
     const auto xyz = [&](const std::string& opt, const std::string& text) {
       Eigen::Vector3d v;
@@ -543,12 +547,12 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
   }
   if (format == "rplidar" || format == "rosbag2") return cmd_import_tilt(format, inputs, out_dir, {});
   if (format != "3dtk")
-    throw ConfigError("import: unknown format '" + format + "'" + did_you_mean(format, {"3dtk", "rplidar", "rosbag2", "octomap", "cloud"}) +
-                      "; formats: 3dtk, rplidar, rosbag2, octomap, cloud");
+    throw ConfigError("import: unknown format '" + format + "'" + did_you_mean(format, {"3dtk", "rplidar", "rosbag2", "octomap", "cloud", "carmen"}) +
+                      "; formats: 3dtk, rplidar, rosbag2, octomap, cloud, carmen");
   if (poses != "odometry" && poses != "frames")
     throw ConfigError("import 3dtk: --poses must be odometry or frames, not '" + poses + "'");
   io::StagedOutputs staged(out_dir);
-  const io::Imported3dtk r = io::import_3dtk(inputs, poses == "frames");
+  const io::Imported3dtk r = io::import_3dtk(inputs, poses == "frames", beams_per_line);
   const std::size_t n = write_passes(r.passes, staged.staging_dir());
   sim::write_pose_csv(r.poses, RpyOrder::kXyz, (std::filesystem::path(staged.staging_dir()) / "poses.csv").string());
   staged.commit();
@@ -589,6 +593,30 @@ int cmd_import_tilt(const std::string& format, const std::vector<std::string>& i
   std::printf("tilt: nod = %g * %g deg * (reading - %g); the laser is %g m above the tilt axis: put mount z: %g in the "
               "pipeline\n",
               -g.sign, g.scale, g.zero, g.axis_offset, g.axis_offset);
+
+int cmd_import_carmen(const std::vector<std::string>& inputs, const std::string& out_dir) {
+  if (inputs.size() != 1)
+    throw ConfigError("import carmen: expected one log (.log or .log.gz), got " + std::to_string(inputs.size()) + " inputs");
+  io::StagedOutputs staged(out_dir);
+  const io::ImportedCarmen r = io::import_carmen(inputs[0]);
+  // One pass per message: enough digits that the files sort in time order.
+  const std::size_t digits = std::max<std::size_t>(3, std::to_string(r.passes.size() - 1).size());
+  std::size_t n = 0;
+  for (std::size_t k = 0; k < r.passes.size(); ++k) {
+    const std::string num = std::to_string(k);
+    const std::string name = "pass_" + std::string(digits - num.size(), '0') + num + ".pcd";
+    sim::write_pass_pcd(r.passes[k], (std::filesystem::path(staged.staging_dir()) / name).string());
+    n += r.passes[k].size();
+  }
+  sim::write_pose_csv(r.poses, RpyOrder::kXyz, (std::filesystem::path(staged.staging_dir()) / "poses.csv").string());
+  staged.commit();
+  std::printf("imported %zu %s message(s) as planar passes, %zu returns (%zu at or beyond the maximum range: no return) "
+              "-> %s (pass_*.pcd, poses.csv: the laser poses; rpy_order xyz, mount identity)\n",
+              r.passes.size(), r.message.c_str(), n, r.max_range_readings, out_dir.c_str());
+  if (r.message == "FLASER") std::printf("  FLASER maximum range %.2f m\n", r.max_range);
+  if (r.skipped_flaser)
+    std::printf("  %zu FLASER message(s) skipped: the log has ROBOTLASER1 messages of the same scans\n", r.skipped_flaser);
+  if (r.reordered) std::printf("  %zu message(s) earlier than the one before them: passes are in time order\n", r.reordered);
   return 0;
 }
 

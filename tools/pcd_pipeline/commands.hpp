@@ -47,11 +47,13 @@ int cmd_merge(const std::vector<std::string>& inputs, const std::string& output,
 int cmd_docs();
 int cmd_import(const std::string& format, const std::vector<std::string>& inputs, const std::string& out_dir,
                const std::string& poses, const std::string& viewpoint = "", double max_residual = 0.02,
-               const std::string& nod_origin = "");
+               const std::string& nod_origin = "", std::size_t beams_per_line = 0);
 /// `import rplidar` (CSV export) and `import rosbag2` (ROS 2 bag): LaserScan + tilt stream, with the
 /// shared tilt geometry in `p.passes.geometry` (rplidar uses only that).
 int cmd_import_tilt(const std::string& format, const std::vector<std::string>& inputs, const std::string& out_dir,
                     const io::Rosbag2ImportParams& p);
+/// `import carmen LOG --output-dir DIR`: one planar pass per laser message and the laser poses.
+int cmd_import_carmen(const std::vector<std::string>& inputs, const std::string& out_dir);
 int cmd_simulate(const std::string& scene, const std::string& output_dir, bool quiet);
 
 }  // namespace pcdp::cli

@@ -136,12 +136,14 @@ int main(int argc, char** argv) {
   std::vector<std::string> imp_in;
   std::string imp_viewpoint, imp_nod_origin;
   double imp_residual = 0.02;
+  std::size_t imp_beams = 0;
   io::Rosbag2ImportParams imp_tilt;  // rplidar, rosbag2
   int imp_sign = -1;
-  CLI::App* imp = app.add_subcommand("import", "convert scans of other tools to raw passes and a pose file (formats: 3dtk, rplidar, rosbag2, octomap, cloud)");
+  CLI::App* imp = app.add_subcommand("import", "convert scans of other tools to raw passes and a pose file (formats: 3dtk, rplidar, rosbag2, octomap, cloud, carmen)");
   imp->add_option("format", imp_format,
                   "3dtk: 3DTK uos scans (.3d with .pose/.frames beside them); rplidar: a folder of scans/beams/servo CSV; rosbag2: a ROS 2 bag (sqlite3) of LaserScan + tilt; "
-                  "octomap: scan.dat (ASCII, NODE lines) or .graph (ScanGraph); cloud: Cartesian .pcd or .ply with a viewpoint")
+                  "octomap: scan.dat (ASCII, NODE lines) or .graph (ScanGraph); cloud: Cartesian .pcd or .ply with a viewpoint; "
+                  "carmen: a CARMEN log (.log or .log.gz) of FLASER / ROBOTLASER1 messages, one planar pass per message")
       ->required();
   imp->add_option("inputs", imp_in, "input files")->required();
   imp->add_option("--output-dir", imp_out, "folder for pass_*.pcd and poses.csv")->required()->check(output_path);
@@ -166,6 +168,9 @@ int main(int argc, char** argv) {
   imp->add_option("--axis-offset", imp_tilt.passes.geometry.axis_offset,
                   "rplidar, rosbag2: m, the laser above the tilt axis (printed as the pipeline's mount z)")
       ->capture_default_str();
+  imp->add_option("--beams-per-line", imp_beams,
+                  "3dtk: beams per scan line when the geometry cannot tell (default: read from the points' bearings)")
+      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 24));
   cli::BenchArgs bench;
   CLI::App* bch = app.add_subcommand("bench", "time the chain stage by stage against PCL, OctoMap and a plain loop, same data");
   bch->add_option("--scene", bench.scene, "scene to simulate")->capture_default_str();
@@ -200,7 +205,8 @@ int main(int argc, char** argv) {
       imp_tilt.passes.geometry.sign = imp_sign;
       return cli::cmd_import_tilt(imp_format, imp_in, imp_out, imp_tilt);
     }
-    if (*imp) return cli::cmd_import(imp_format, imp_in, imp_out, imp_poses, imp_viewpoint, imp_residual, imp_nod_origin);
+    if (*imp && imp_format == "carmen" && imp_beams == 0) return cli::cmd_import_carmen(imp_in, imp_out);
+    if (*imp) return cli::cmd_import(imp_format, imp_in, imp_out, imp_poses, imp_viewpoint, imp_residual, imp_nod_origin, imp_beams);
     if (*mrg) return cli::cmd_merge(mg_in, mg_out, mg_png, mg_threads);
     if (*calr) return cli::cmd_calibrate_range(cr_csv);
     if (*calm) return cli::cmd_calibrate_mount(cm_args, cm_scans);
