@@ -593,6 +593,8 @@ int cmd_import_tilt(const std::string& format, const std::vector<std::string>& i
   std::printf("tilt: nod = %g * %g deg * (reading - %g); the laser is %g m above the tilt axis: put mount z: %g in the "
               "pipeline\n",
               -g.sign, g.scale, g.zero, g.axis_offset, g.axis_offset);
+  return 0;
+}
 
 int cmd_import_carmen(const std::vector<std::string>& inputs, const std::string& out_dir) {
   if (inputs.size() != 1)
