@@ -45,7 +45,7 @@ int cmd_merge(const std::vector<std::string>& inputs, const std::string& output,
 int cmd_docs();
 int cmd_import(const std::string& format, const std::vector<std::string>& inputs, const std::string& out_dir,
                const std::string& poses, const std::string& viewpoint = "", double max_residual = 0.02,
-               const std::string& nod_origin = "");
+               const std::string& nod_origin = "", double max_range = 1000.0, double unit_scale = 0.0);
 int cmd_simulate(const std::string& scene, const std::string& output_dir, bool quiet);
 
 }  // namespace pcdp::cli
