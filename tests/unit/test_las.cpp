@@ -288,3 +288,18 @@ TEST(Las, WritersRoundTrip) {
   EXPECT_THROW(io::cloud_format_of("b.xyz", "-o"), ConfigError);
   EXPECT_THROW(io::cloud_format_of("dir.d/b", "-o"), ConfigError);
 }
+
+TEST(Las, FuzzCorpusSeedsReadOrFailCleanly) {
+  std::size_t seeds = 0, read = 0;
+  for (const auto& e : fs::directory_iterator(std::string(PCDP_SOURCE_DIR) + "/tests/fuzz/corpus/las")) {
+    ++seeds;
+    try {
+      EXPECT_GE(io::read_las(e.path().string()).xyz.size(), 2u) << e.path();
+      ++read;
+    } catch (const InputError& x) {
+      EXPECT_NE(e.path().filename().string().find("truncated"), std::string::npos) << e.path() << ": " << x.what();
+    }
+  }
+  EXPECT_GE(seeds, 7u);
+  EXPECT_EQ(read, seeds - 1);
+}
