@@ -581,7 +581,11 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
         std::printf("; %zu point(s) of %zu line(s) did not fit their line within %.3g m and were imported as lines of "
                     "their own%s",
                     rec.loose_points, rec.split_lines, max_residual,
-                    rec.nod_origin.isZero() && nod_origin.empty() ? " (is the scan's origin on the nod axis? try --nod-origin auto)" : "");
+                    2 * rec.loose_points > r.passes[k].size()
+                        ? " (no scan-line order, as in airborne or map-frame clouds: each point is its own line, exact, "
+                          "without scan-line neighbours)"
+                    : rec.nod_origin.isZero() && nod_origin.empty() ? " (is the scan's origin on the nod axis? try --nod-origin auto)"
+                                                                    : "");
       std::printf("\n");
     }
     return 0;
