@@ -144,7 +144,7 @@ int main(int argc, char** argv) {
   imp->add_option("inputs", imp_in, "input files")->required();
   imp->add_option("--output-dir", imp_out, "folder for pass_*.pcd and poses.csv")->required()->check(output_path);
   imp->add_option("--poses", imp_poses, "3dtk: odometry (.pose) or frames (slam6D's registered .frames)")->capture_default_str();
-  imp->add_option("--viewpoint", imp_viewpoint, "cloud: sensor position x,y,z in the cloud frame (default: the PCD VIEWPOINT; PLY, LAS: 0,0,0)");
+  imp->add_option("--viewpoint", imp_viewpoint, "cloud: sensor position x,y,z in the cloud frame, LAS after --unit-scale (default: the PCD VIEWPOINT; PLY, LAS: 0,0,0)");
   imp->add_option("--max-range", imp_max_range,
                   "cloud: the sensor's maximum range, m; a viewpoint farther than this from half of the points is refused")
       ->capture_default_str()
