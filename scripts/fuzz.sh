@@ -17,9 +17,9 @@ fi
 ./scripts/setup.sh >/dev/null  # the other Debian packages
 CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPCDP_FUZZ=ON \
   -DPCDP_BUILD_TESTS=OFF -DPCDP_BUILD_TOOLS=OFF -DPCDP_BUILD_BENCHMARKS=OFF >/dev/null
-cmake --build build-fuzz -j "$(nproc)" --target fuzz_pcd fuzz_pose_csv fuzz_pipeline_yaml fuzz_geotiff fuzz_grid_metadata fuzz_rosbag2_cdr fuzz_carmen
+cmake --build build-fuzz -j "$(nproc)" --target fuzz_pcd fuzz_pose_csv fuzz_pipeline_yaml fuzz_geotiff fuzz_grid_metadata fuzz_rosbag2_cdr fuzz_carmen fuzz_las
 status=0
-for t in pcd pose_csv pipeline_yaml geotiff grid_metadata rosbag2_cdr carmen; do
+for t in pcd pose_csv pipeline_yaml geotiff grid_metadata rosbag2_cdr carmen las; do
   work="build-fuzz/corpus-$t"
   rm -rf "$work" && mkdir -p "$work" && cp tests/fuzz/corpus/$t/* "$work"/
   if build-fuzz/tests/fuzz/fuzz_$t -max_total_time="$SECONDS_EACH" -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix=tests/fuzz/crash-$t- \

@@ -278,8 +278,8 @@ TEST(CommitHardeningCli, UnwritableOutputsExitWith4InEverySubcommand) {
       {"merge", tif, tif2, "-o", through},
       {"merge", tif, tif2, "-o", d.dir + "/m.tif", "--png", through},
       {"simulate", scene, "--output-dir", through},
-      {"clean-cloud", cloud, "-o", through},
-      {"clean-cloud", cloud, "-o", d.dir + "/c.pcd", "--removed", through},
+      {"clean-cloud", cloud, "-o", through + ".pcd"},  // the extension names the format (.pcd, .ply, .las)
+      {"clean-cloud", cloud, "-o", d.dir + "/c.pcd", "--removed", through + ".las"},
       {"amplitude-model", "--svg", through},
       {"amplitude-model", "--profile-csv", through},
       {"error-budget", d.yaml, "--svg", through},

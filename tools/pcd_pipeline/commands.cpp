@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -27,6 +28,7 @@
 #include "pcdp/io/import_carmen.hpp"
 #include "pcdp/io/import_rplidar.hpp"
 #include "pcdp/io/import_scans.hpp"
+#include "pcdp/io/las.hpp"
 #include "pcdp/nod_plan.hpp"
 #include "pcdp/io/svg_plot.hpp"
 #include "pcdp/occlusion_model.hpp"
@@ -248,9 +250,46 @@ int cmd_amplitude_model(const EdgeParams& e, const AmplitudeModelArgs& a) {
   return 0;
 }
 
+namespace {
+/// clean-cloud looks for mixed pixels along the rays from one viewpoint. A cloud that carries its
+/// measured `range` (pcd_pipeline's returns.pcd and cloud.pcd) says where it was seen from: when
+/// the distance to the viewpoint differs from `range` by more than max(0.1 m, 2 %) for more than
+/// half of the points, the cloud was not measured from there (a cloud merged from a moving scanner
+/// was measured from many places) and is refused instead of being cut along wrong rays.
+void check_clean_cloud_viewpoint(const CleanCloudArgs& a, const io::PcdTable& t, const std::vector<Eigen::Vector3d>& pts,
+                                 const Eigen::Vector3d& vp) {
+  const int ir = t.header.field_index("range");
+  if (ir < 0) return;
+  const auto& f = t.header.fields[static_cast<std::size_t>(ir)];
+  std::size_t used = 0, off = 0;
+  std::vector<double> diff;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const double r = io::field_value(f, t.columns[static_cast<std::size_t>(ir)].data() + i * f.bytes());
+    if (!std::isfinite(r) || r <= 0 || !pts[i].allFinite()) continue;
+    ++used;
+    const double d = std::abs((pts[i] - vp).norm() - r);
+    diff.push_back(d);
+    if (d > std::max(0.1, 0.02 * r)) ++off;
+  }
+  if (used == 0 || 2 * off <= used) return;
+  std::nth_element(diff.begin(), diff.begin() + static_cast<long>(diff.size() / 2), diff.end());
+  char med[32];
+  std::snprintf(med, sizeof med, "%.3g", diff[diff.size() / 2]);
+  throw ConfigError(a.input + ": the points were not measured from the viewpoint " + std::to_string(vp.x()) + "," +
+                    std::to_string(vp.y()) + "," + std::to_string(vp.z()) + (a.viewpoint.empty() ? " (the PCD VIEWPOINT)" : " (--viewpoint)") +
+                    ": for " + std::to_string(off) + " of " + std::to_string(used) +
+                    " points the distance to it differs from their field 'range' by more than max(0.1 m, 2 %) (median " + med +
+                    " m). clean-cloud needs the one position every point was measured from; a cloud merged from a moving "
+                    "scanner (pcd_pipeline's cloud.pcd and returns.pcd) has none: remove mixed pixels in the pipeline "
+                    "(stage reject_mixed_pixels), or pass --viewpoint where a static scanner stood");
+}
+}  // namespace
+
 int cmd_clean_cloud(const CleanCloudArgs& a) {
   if (a.output.empty()) throw ConfigError("clean-cloud: --output is required");
   if (!(a.resolution > 0.0 && a.resolution < 0.5)) throw ConfigError("clean-cloud: --resolution must be in (0, 0.5) rad");
+  const io::CloudFormat out_fmt = io::cloud_format_of(a.output, "clean-cloud --output");
+  const io::CloudFormat removed_fmt = a.removed.empty() ? out_fmt : io::cloud_format_of(a.removed, "clean-cloud --removed");
   io::StagedFiles staged;  // checked and locked before the work
   const std::string kept_tmp = staged.add("clean-cloud --output", a.output);
   const std::string removed_tmp = a.removed.empty() ? std::string() : staged.add("clean-cloud --removed", a.removed);
@@ -278,10 +317,26 @@ int cmd_clean_cloud(const CleanCloudArgs& a) {
     amp.resize(n);
     for (std::size_t i = 0; i < n; ++i) amp[i] = static_cast<float>(col(k, i));
   }
+  check_clean_cloud_viewpoint(a, t, pts, vp);
   const std::vector<char> mixed = mixed_pixels_in_cloud(pts, vp, amp, a.resolution, MixedPixelParams{}, 0.0053);
-  // Write kept (and removed) points with every field of the input, committed as a set.
-  const auto write = [&](const std::string& tmp, bool want_mixed) {
+  // Write kept (and removed) points, committed as a set: a PCD with every field of the input; PLY
+  // and LAS with map coordinates (x y z + map_origin), the amplitude and the label when present.
+  const int il = t.header.field_index("label");
+  const auto write = [&](const std::string& tmp, bool want_mixed, io::CloudFormat fmt) {
     std::uint64_t count = 0;
+    if (fmt != io::CloudFormat::kPcd) {
+      io::CloudOut c;
+      const Eigen::Vector3d origin(t.header.map_origin[0], t.header.map_origin[1], t.header.map_origin[2]);
+      for (std::size_t i = 0; i < n; ++i) {
+        if ((mixed[i] != 0) != want_mixed) continue;
+        c.xyz.push_back(pts[i] + origin);
+        if (!amp.empty()) c.intensity.push_back(amp[i]);
+        if (il >= 0) c.label.push_back(static_cast<std::uint8_t>(std::clamp(col(il, i), 0.0, 255.0)));
+      }
+      if (fmt == io::CloudFormat::kLas) io::write_las(tmp, c);
+      else io::write_ply(tmp, c);
+      return static_cast<std::uint64_t>(c.xyz.size());
+    }
     {
       io::PcdWriter w(tmp, t.header.fields);
       w.set_map_origin(t.header.map_origin[0], t.header.map_origin[1], t.header.map_origin[2]);  // x y z stay relative to it
@@ -301,8 +356,8 @@ int cmd_clean_cloud(const CleanCloudArgs& a) {
     }
     return count;
   };
-  const std::uint64_t kept = write(kept_tmp, false);
-  const std::uint64_t removed = a.removed.empty() ? n - kept : write(removed_tmp, true);
+  const std::uint64_t kept = write(kept_tmp, false, out_fmt);
+  const std::uint64_t removed = a.removed.empty() ? n - kept : write(removed_tmp, true, removed_fmt);
   staged.commit();
   if (!a.quiet)
     std::printf("%s: %zu points, %llu mixed pixels removed (viewpoint %g %g %g, resolution %g rad) -> %s\n", a.input.c_str(), n,
@@ -500,7 +555,7 @@ std::size_t write_passes(const std::vector<Pass>& passes, const std::string& out
 
 int cmd_import(const std::string& format, const std::vector<std::string>& inputs, const std::string& out_dir,
                const std::string& poses, const std::string& viewpoint, double max_residual, const std::string& nod_origin,
-               std::size_t beams_per_line) {
+               std::size_t beams_per_line, double max_range, double unit_scale) {
   if (beams_per_line != 0 && format != "3dtk")
     throw ConfigError("import " + format + ": --beams-per-line is for 3dtk scans");
   if (format == "octomap" || format == "cloud") {
@@ -521,6 +576,8 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
     io::ImportOptions opt;
     opt.max_residual = max_residual;
     opt.auto_nod_origin = nod_origin == "auto";
+    opt.max_range = max_range;
+    opt.unit_scale = unit_scale;
     if (!nod_origin.empty() && !opt.auto_nod_origin) opt.nod_origin = xyz("--nod-origin", nod_origin);
     io::StagedOutputs staged(out_dir);  // locked and checked before the work; committed as a set
     const io::ImportedScans r = format == "octomap" ? io::import_octomap(inputs, opt)
@@ -531,6 +588,7 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
     std::printf("imported %zu scan(s), %zu returns -> %s (pass_*.pcd, poses.csv; rpy_order xyz, mount identity, "
                 "skew_correction: false)\n",
                 r.passes.size(), n, out_dir.c_str());
+    for (const auto& note : r.notes) std::printf("  %s\n", note.c_str());
     for (std::size_t k = 0; k < r.passes.size(); ++k) {
       const io::LineRecovery& rec = r.recovery[k];
       std::printf("  %s: nod origin %.3f,%.3f,%.3f; %zu scan line(s)%s, rebuild error median %.2g m, largest %.2g m",
@@ -540,7 +598,11 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
         std::printf("; %zu point(s) of %zu line(s) did not fit their line within %.3g m and were imported as lines of "
                     "their own%s",
                     rec.loose_points, rec.split_lines, max_residual,
-                    rec.nod_origin.isZero() && nod_origin.empty() ? " (is the scan's origin on the nod axis? try --nod-origin auto)" : "");
+                    2 * rec.loose_points > r.passes[k].size()
+                        ? " (no scan-line order, as in airborne or map-frame clouds: each point is its own line, exact, "
+                          "without scan-line neighbours)"
+                    : rec.nod_origin.isZero() && nod_origin.empty() ? " (is the scan's origin on the nod axis? try --nod-origin auto)"
+                                                                    : "");
       std::printf("\n");
     }
     return 0;

@@ -47,7 +47,8 @@ int cmd_merge(const std::vector<std::string>& inputs, const std::string& output,
 int cmd_docs();
 int cmd_import(const std::string& format, const std::vector<std::string>& inputs, const std::string& out_dir,
                const std::string& poses, const std::string& viewpoint = "", double max_residual = 0.02,
-               const std::string& nod_origin = "", std::size_t beams_per_line = 0);
+               const std::string& nod_origin = "", std::size_t beams_per_line = 0, double max_range = 1000.0,
+               double unit_scale = 0.0);
 /// `import rplidar` (CSV export) and `import rosbag2` (ROS 2 bag): LaserScan + tilt stream, with the
 /// shared tilt geometry in `p.passes.geometry` (rplidar uses only that).
 int cmd_import_tilt(const std::string& format, const std::vector<std::string>& inputs, const std::string& out_dir,

@@ -135,20 +135,28 @@ int main(int argc, char** argv) {
   std::string imp_format, imp_out, imp_poses = "odometry";
   std::vector<std::string> imp_in;
   std::string imp_viewpoint, imp_nod_origin;
-  double imp_residual = 0.02;
+  double imp_residual = 0.02, imp_max_range = 1000.0, imp_unit_scale = 0.0;
   std::size_t imp_beams = 0;
   io::Rosbag2ImportParams imp_tilt;  // rplidar, rosbag2
   int imp_sign = -1;
   CLI::App* imp = app.add_subcommand("import", "convert scans of other tools to raw passes and a pose file (formats: 3dtk, rplidar, rosbag2, octomap, cloud, carmen)");
   imp->add_option("format", imp_format,
                   "3dtk: 3DTK uos scans (.3d with .pose/.frames beside them); rplidar: a folder of scans/beams/servo CSV; rosbag2: a ROS 2 bag (sqlite3) of LaserScan + tilt; "
-                  "octomap: scan.dat (ASCII, NODE lines) or .graph (ScanGraph); cloud: Cartesian .pcd or .ply with a viewpoint; "
+                  "octomap: scan.dat (ASCII, NODE lines) or .graph (ScanGraph); cloud: Cartesian .pcd, .ply or .las with a viewpoint; "
                   "carmen: a CARMEN log (.log or .log.gz) of FLASER / ROBOTLASER1 messages, one planar pass per message")
       ->required();
   imp->add_option("inputs", imp_in, "input files")->required();
   imp->add_option("--output-dir", imp_out, "folder for pass_*.pcd and poses.csv")->required()->check(output_path);
   imp->add_option("--poses", imp_poses, "3dtk: odometry (.pose) or frames (slam6D's registered .frames)")->capture_default_str();
-  imp->add_option("--viewpoint", imp_viewpoint, "cloud: sensor position x,y,z in the cloud frame (default: the PCD VIEWPOINT; PLY: 0,0,0)");
+  imp->add_option("--viewpoint", imp_viewpoint, "cloud: sensor position x,y,z in the cloud frame, LAS after --unit-scale (default: the PCD VIEWPOINT; PLY, LAS: 0,0,0)");
+  imp->add_option("--max-range", imp_max_range,
+                  "cloud: the sensor's maximum range, m; a viewpoint farther than this from half of the points is refused")
+      ->capture_default_str()
+      ->check(CLI::Range(1e-3, 1e7));
+  imp->add_option("--unit-scale", imp_unit_scale,
+                  "cloud: metres per LAS file unit (0.3048 for feet); 0: the unit the file's CRS declares, else 1")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1e6));
   imp->add_option("--nod-origin", imp_nod_origin,
                   "octomap, cloud: the nod axis origin x,y,z in the scan frame, or 'auto' to estimate it (default 0,0,0)");
   imp->add_option("--max-residual", imp_residual, "octomap, cloud: m; a scan line whose points do not rebuild within this is imported point by point")
@@ -206,7 +214,8 @@ int main(int argc, char** argv) {
       return cli::cmd_import_tilt(imp_format, imp_in, imp_out, imp_tilt);
     }
     if (*imp && imp_format == "carmen" && imp_beams == 0) return cli::cmd_import_carmen(imp_in, imp_out);
-    if (*imp) return cli::cmd_import(imp_format, imp_in, imp_out, imp_poses, imp_viewpoint, imp_residual, imp_nod_origin, imp_beams);
+    if (*imp) return cli::cmd_import(imp_format, imp_in, imp_out, imp_poses, imp_viewpoint, imp_residual, imp_nod_origin, imp_beams,
+                                     imp_max_range, imp_unit_scale);
     if (*mrg) return cli::cmd_merge(mg_in, mg_out, mg_png, mg_threads);
     if (*calr) return cli::cmd_calibrate_range(cr_csv);
     if (*calm) return cli::cmd_calibrate_mount(cm_args, cm_scans);

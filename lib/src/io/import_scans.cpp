@@ -1,6 +1,8 @@
 #include "pcdp/io/import_scans.hpp"
 
 #include <algorithm>
+#include <cctype>
+#include <cstdio>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -11,6 +13,7 @@
 
 #include "pcdp/errors.hpp"
 #include "pcdp/io/input_file.hpp"
+#include "pcdp/io/las.hpp"
 #include "pcdp/io/pcd.hpp"
 
 namespace pcdp::io {
@@ -523,14 +526,81 @@ void read_ply(const std::string& path, std::vector<Eigen::Vector3d>& xyz, std::v
   }
 }
 
+namespace {
+std::string fmt_num(double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%.3f", v);
+  return b;
+}
+
+/// Refuses a viewpoint farther than max_range from more than half of the points (see the header).
+void check_viewpoint(const std::string& path, const std::vector<Eigen::Vector3d>& pts, const Eigen::Vector3d& vp,
+                     const std::string& source, double max_range) {
+  std::size_t finite = 0, far = 0;
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (const auto& p : pts) {
+    if (!p.allFinite()) continue;
+    ++finite;
+    if ((p - vp).norm() > max_range) ++far;
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  if (finite == 0 || 2 * far <= finite) return;
+  const Eigen::Vector3d top((lo.x() + hi.x()) / 2, (lo.y() + hi.y()) / 2, hi.z());
+  const double reach = (Eigen::Vector3d(hi.x(), hi.y(), lo.z()) - top).norm();
+  std::string msg = path + ": the viewpoint " + fmt_num(vp.x()) + "," + fmt_num(vp.y()) + "," + fmt_num(vp.z()) + " (" +
+                    source + ") is farther than the maximum range " +
+                    fmt_num(max_range) + " m from " + std::to_string(far) + " of the " + std::to_string(finite) +
+                    " points: a sensor there could not have measured them (the rule: at least half of the points within " +
+                    "--max-range of the viewpoint). The cloud spans x " + fmt_num(lo.x()) + ".." + fmt_num(hi.x()) + ", y " +
+                    fmt_num(lo.y()) + ".." + fmt_num(hi.y()) + ", z " + fmt_num(lo.z()) + ".." + fmt_num(hi.z()) +
+                    "; pass --viewpoint X,Y,Z where the sensor was (a map-frame or airborne cloud: e.g. above the centre, " +
+                    fmt_num(top.x()) + "," + fmt_num(top.y()) + "," + fmt_num(top.z()) + ")";
+  if (reach > max_range) msg += ", and --max-range of at least " + fmt_num(std::ceil(reach)) + " m to reach its corners from there";
+  throw ConfigError(msg);
+}
+
+bool ends_with_ci(const std::string& s, const std::string& suffix) {
+  if (s.size() < suffix.size()) return false;
+  for (std::size_t i = 0; i < suffix.size(); ++i)
+    if (std::tolower(static_cast<unsigned char>(s[s.size() - suffix.size() + i])) != suffix[i]) return false;
+  return true;
+}
+}  // namespace
+
 ImportedScans import_cloud(const std::vector<std::string>& files, const Eigen::Vector3d* viewpoint, const ImportOptions& opt) {
   ImportedScans out;
   for (const auto& f : files) {
     Scan s;
     s.source = f;
     std::vector<Eigen::Vector3d> pts;
-    const bool ply = f.size() >= 4 && (f.compare(f.size() - 4, 4, ".ply") == 0 || f.compare(f.size() - 4, 4, ".PLY") == 0);
-    if (ply) {
+    const bool ply = ends_with_ci(f, ".ply");
+    if (ends_with_ci(f, ".laz"))
+      throw InputError(f + ": LAZ (compressed LAS) is not supported: decompress it to LAS first "
+                           "(e.g. `laszip -i IN.laz -o OUT.las` or `pdal translate IN.laz OUT.las`)");
+    const bool las = ends_with_ci(f, ".las") || has_las_signature(f), las_or_ply = las || ply;
+    if (las) {
+      LasCloud c = read_las(f);
+      const LasHeader& h = c.header;
+      double m = opt.unit_scale;
+      std::string note = f + ": LAS " + std::to_string(h.version_major) + "." + std::to_string(h.version_minor) + ", point format " +
+                         std::to_string(h.point_format) + ", " + std::to_string(h.points) + " points; ";
+      if (h.unit_to_metre > 0)
+        note += "units: " + h.unit_name + " (" + h.unit_source + ", " + std::to_string(h.unit_to_metre) + " m)";
+      else
+        note += "units: not declared (no GeoKey or WKT VLR)";
+      if (m == 0.0) {
+        m = h.unit_to_metre > 0 ? h.unit_to_metre : 1.0;
+        note += h.unit_to_metre > 0 ? "; coordinates scaled to metres (x " + std::to_string(m) + ")"
+                                    : "; taken as metres: pass --unit-scale 0.3048 if they are feet";
+      } else {
+        note += "; coordinates scaled by --unit-scale " + std::to_string(m);
+      }
+      out.notes.push_back(note);
+      for (auto& p : c.xyz) p *= m;
+      pts = std::move(c.xyz);
+      s.amp = std::move(c.intensity);
+    } else if (ply) {
       read_ply(f, pts, s.amp);
     } else {
       const PcdTable t = read_pcd(f);
@@ -551,6 +621,9 @@ ImportedScans import_cloud(const std::vector<std::string>& files, const Eigen::V
       s.T.linear() = Eigen::Quaterniond(vp[3], vp[4], vp[5], vp[6]).normalized().toRotationMatrix();
     }
     if (viewpoint) s.T = Eigen::Translation3d(*viewpoint) * Eigen::Isometry3d::Identity();
+    check_viewpoint(f, pts, s.T.translation(),
+                    viewpoint ? "--viewpoint" : las_or_ply ? "none given: PLY and LAS carry no viewpoint" : "the PCD VIEWPOINT",
+                    opt.max_range);
     // Points into the sensor frame: p_s = R^T (p - t).
     for (auto& p : pts)
       if (p.allFinite()) p = s.T.inverse() * p;

@@ -375,9 +375,18 @@ PcdTable read_pcd_unguarded(const std::string& path) {
     if (csize > avail - 8)
       fail(path, "truncated: binary_compressed declares " + std::to_string(csize) + " compressed bytes but " +
                      std::to_string(avail - 8) + " follow");
-    if (csize < avail - 8)
+    // PCL 1.7's writer sized binary_compressed files for the worst case and left zeros after the
+    // data (the ISPRS clouds of PointCloudLibrary/data): zero padding is accepted, anything else not.
+    bool zero_tail = csize < avail - 8;
+    for (std::uint64_t at = h.data_offset + 8 + csize; zero_tail && at < fsize;) {
+      const std::uint64_t len = std::min<std::uint64_t>(fsize - at, 1 << 20);
+      const auto tail = read_range(path, at, static_cast<std::size_t>(len));
+      zero_tail = std::all_of(tail.begin(), tail.end(), [](std::uint8_t b) { return b == 0; });
+      at += len;
+    }
+    if (csize < avail - 8 && !zero_tail)
       fail(path, "binary_compressed: the file holds " + std::to_string(avail - 8 - csize) + " bytes after the " +
-                     std::to_string(csize) + " compressed bytes the data declares (header and data disagree)");
+                     std::to_string(csize) + " compressed bytes the data declares, not all zero (header and data disagree)");
     if (static_cast<double>(usize) > kLzfMaxRatio * static_cast<double>(csize) + 64.0)
       fail(path, "binary_compressed: " + std::to_string(csize) + " compressed bytes cannot hold " + claims());
     std::vector<std::uint8_t> raw(need);

@@ -52,6 +52,7 @@ struct ImportedScans {
   std::vector<Pass> passes;
   std::vector<PoseSample> poses;
   std::vector<LineRecovery> recovery;  ///< one per pass
+  std::vector<std::string> notes;      ///< what the import assumed (units, viewpoints), one line each, for the user
 };
 
 /// Points of one scan in the sensor frame, split into lines (see above), to a raw pass. Scan k
@@ -73,6 +74,12 @@ struct ImportOptions {
   double max_residual = 0.02;     ///< m: a point that rebuilds worse leaves its line
   bool auto_nod_origin = false;   ///< estimate the nod origin of each scan (estimate_nod_origin)
   Eigen::Vector3d nod_origin = Eigen::Vector3d::Zero();
+  /// import_cloud: the sensor's maximum range, m. A viewpoint farther than this from more than half
+  /// of a cloud's points is refused (ConfigError): a sensor there could not have measured them.
+  double max_range = 1000.0;
+  /// import_cloud: metres per file unit applied to LAS coordinates; 0: the unit the LAS file declares
+  /// (GeoKeys or WKT VLR), or 1 when it declares none (said in the notes).
+  double unit_scale = 0.0;
 };
 
 /// The point on the nod axis (y = 0; x and z searched) that makes the scan's lines rebuild best
@@ -81,8 +88,11 @@ Eigen::Vector3d estimate_nod_origin(const std::vector<Eigen::Vector3d>& pts);
 
 ImportedScans import_octomap(const std::vector<std::string>& files, const ImportOptions& opt = {});
 
-/// Cartesian PCD (any encoding) or PLY (ascii, binary_little_endian) clouds, one scan each. The
-/// sensor pose is the PCD VIEWPOINT, or `viewpoint` (x, y, z; identity rotation) when given.
+/// Cartesian PCD (any encoding), PLY (ascii, binary_little_endian) or LAS 1.2-1.4 (pcdp/io/las.hpp;
+/// chosen by the "LASF" signature; .laz refused) clouds, one scan each. The sensor pose is the PCD
+/// VIEWPOINT, or `viewpoint` (x, y, z; identity rotation) when given; PLY and LAS have none (0,0,0).
+/// LAS coordinates are scaled to metres (opt.unit_scale), intensity becomes the amplitude.
+/// Throws ConfigError when the viewpoint is implausible (see ImportOptions::max_range).
 ImportedScans import_cloud(const std::vector<std::string>& files, const Eigen::Vector3d* viewpoint,
                            const ImportOptions& opt = {});
 
