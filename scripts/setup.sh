@@ -11,6 +11,7 @@ PACKAGES=(
   libeigen3-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libpcl-dev liboctomap-dev libpng-dev libdeflate-dev zlib1g-dev  # zlib: the GeoTIFF reader inflates a row at a time
+  libssl-dev  # libcrypto: SHA-256 of report.json's inputs and outputs
   libgdal-dev gdal-bin  # the tests only: an independent reader of the GeoTIFFs we write (and gdalinfo)
 )
 
