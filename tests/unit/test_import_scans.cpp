@@ -217,6 +217,9 @@ TEST(ImportScans, OurCloudPcdGivesItsAmplitudesUnderEitherName) {
   for (const float v : amp) measured += std::isfinite(v) && v != 0.0f;
   EXPECT_GT(measured, amp.size() / 2) << "the amplitudes were not read";
   ASSERT_EQ(b.passes[0].amplitude.size(), amp.size());
-  for (std::size_t i = 0; i < amp.size(); ++i)
-    if (std::isfinite(amp[i]) || std::isfinite(b.passes[0].amplitude[i])) ASSERT_EQ(b.passes[0].amplitude[i], amp[i]) << i;
+  for (std::size_t i = 0; i < amp.size(); ++i) {
+    if (std::isfinite(amp[i]) || std::isfinite(b.passes[0].amplitude[i])) {
+      ASSERT_EQ(b.passes[0].amplitude[i], amp[i]) << i;
+    }
+  }
 }
