@@ -13,6 +13,7 @@ PACKAGES=(
   libpcl-dev liboctomap-dev libpng-dev libdeflate-dev zlib1g-dev  # zlib: the GeoTIFF reader inflates a row at a time
   libtiff-dev libgeotiff-dev libproj-dev  # elevation.tif: libtiff, its GeoKeys (libgeotiff), a WKT `crs` checked (PROJ)
   libsqlite3-dev  # import rosbag2: ROS 2 bags (sqlite3 storage)
+  libssl-dev  # libcrypto: SHA-256 of report.json's inputs and outputs
   libgdal-dev gdal-bin  # the tests only: an independent reader of the GeoTIFFs we write (and gdalinfo)
 )
 

@@ -592,9 +592,15 @@ PipelineConfig build(YAML::Node root, Context& ctx, const LoadOptions& opts) {
     cfg.output_dir = opts.output_dir;
   } else {
     const YAML::Node od = root["output_dir"];
-    if (!od || od.IsNull()) fail(file, "required key 'output_dir' is missing (give it in the file, or --output-dir)");
-    cfg.output_dir = ctx.resolve("output_dir", scalar_of(ctx, "output_dir", od, "key"));
-    if (cfg.output_dir.empty()) fail(ctx.where("output_dir", od), "'output_dir' is empty");
+    if (!od || od.IsNull()) {
+      // Not given: out/<the pipeline file's name without .yaml>, relative to the working directory
+      // (where the user runs, never beside a shipped or installed pipeline file).
+      const std::string stem = fs::path(file).stem().string();
+      cfg.output_dir = (fs::path("out") / (stem.empty() || stem == "." || stem == ".." ? "pipeline" : stem)).string();
+    } else {
+      cfg.output_dir = ctx.resolve("output_dir", scalar_of(ctx, "output_dir", od, "key"));
+      if (cfg.output_dir.empty()) fail(ctx.where("output_dir", od), "'output_dir' is empty");
+    }
   }
 
   // fixed blocks

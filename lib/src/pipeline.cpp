@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstring>
 #include <ctime>
+#include <filesystem>
 #include <limits>
 #include <map>
 #include <mutex>
@@ -16,6 +17,7 @@
 #include "pcdp/errors.hpp"
 #include "pcdp/georef.hpp"
 #include "pcdp/io/atomic_file.hpp"
+#include "pcdp/io/file_digest.hpp"
 #include "pcdp/io/outputs.hpp"
 #include "pcdp/io/poses.hpp"
 #include "pcdp/pass.hpp"
@@ -50,6 +52,15 @@ class PhaseTimer {
   std::chrono::steady_clock::time_point wall0_;
   std::clock_t cpu0_;
 };
+
+std::string utc_now_iso8601() {
+  const std::time_t t = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char b[32];
+  std::strftime(b, sizeof b, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return b;
+}
 
 LabelHistogram histogram(const Pass& p) {
   LabelHistogram h{};
@@ -216,6 +227,7 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   const auto t_run = std::chrono::steady_clock::now();
   const PipelineConfig& cfg = *config_;
   RunSummary sum;
+  sum.started_at = utc_now_iso8601();
   sum.output_dir = cfg.output_dir;
   sum.threads = std::max(1u, threads);
   sum.map_origin = context_.map_origin;
@@ -449,6 +461,33 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
                            " m from the map origin; returns.pcd, cloud.pcd and map.bt (float32) keep 1 mm only within " +
                            format_value(kFloat32MillimetreReach) + " m of it: split the run");
   sum.outputs = out.final_paths();
+  {
+    // report.json lists every input and every other product with its size and SHA-256: the
+    // products as staged (complete, committed as they are), hashed on the run's threads.
+    const PhaseTimer digest(sum, "digest");
+    for (const auto& f : cfg.scans) sum.input_files.push_back({f, "scan", 0, ""});
+    if (!cfg.poses.empty()) sum.input_files.push_back({cfg.poses, "poses", 0, ""});
+    std::vector<std::string> names = out.names();
+    std::sort(names.begin(), names.end());
+    for (const auto& n : names)
+      if (n != "report.json") sum.output_files.push_back({n, "", 0, ""});
+    const std::size_t ni = sum.input_files.size();
+    detail::parallel_for(ni + sum.output_files.size(), sum.threads, [&](std::size_t k) {
+      const bool input = k < ni;
+      RunSummary::FileRecord& r = input ? sum.input_files[k] : sum.output_files[k - ni];
+      io::FileDigest d;
+      const std::string path = input ? r.file : (std::filesystem::path(out.staging_dir()) / r.file).string();
+      if (const int err = io::digest_file(path, d)) {
+        if (input)
+          throw InputError(r.file + ": cannot read it again to hash it for report.json (" + std::strerror(err) +
+                           "): was it changed or removed during the run?");
+        throw OutputError(out.final_path(r.file) + ": cannot read the staged product to hash it for report.json (" +
+                          std::strerror(err) + ")");
+      }
+      r.bytes = d.bytes;
+      r.sha256 = std::move(d.sha256);
+    });
+  }
   sum.seconds = seconds_since(t_run);
   {
     const std::string js = report_json(cfg, sum);
@@ -488,6 +527,56 @@ nlohmann::json labels_json(const LabelHistogram& h) {
   for (std::size_t l = 0; l < kLabelCount; ++l) j[label_name(static_cast<Label>(l))] = h[l];
   return j;
 }
+
+/// The label code table (docs/data_contract.md "Labels"): what the `label` field of returns.pcd holds.
+nlohmann::json label_codes_json() {
+  nlohmann::json j = nlohmann::json::array();
+  for (std::size_t l = 0; l < kLabelCount; ++l)
+    j.push_back({{"code", l}, {"name", label_name(static_cast<Label>(l))}, {"meaning", label_meaning(static_cast<Label>(l))}});
+  return j;
+}
+
+/// The unit of every field of the products (returns.pcd, cloud.pcd, elevation.tif's bands) and of
+/// the report's own numbers. The options' units: `pcd_pipeline describe <stage or block>`.
+nlohmann::json units_json() {
+  return {{"x", "m"},
+          {"y", "m"},
+          {"z", "m"},
+          {"range", "m"},
+          {"intensity", "sensor units (the received amplitude)"},
+          {"pass", "index (0-based, into config.input.scans)"},
+          {"line", "index"},
+          {"beam", "index"},
+          {"label", "code (label_codes)"},
+          {"flags", "bit set"},
+          {"stamp", "s"},
+          {"cov_xx", "m^2"},
+          {"cov_xy", "m^2"},
+          {"cov_xz", "m^2"},
+          {"cov_yy", "m^2"},
+          {"cov_yz", "m^2"},
+          {"cov_zz", "m^2"},
+          {"sigma_h", "m"},
+          {"elevation", "m"},
+          {"variance", "m^2"},
+          {"count", "returns"},
+          {"min", "m"},
+          {"max", "m"},
+          {"map_origin", "m"},
+          {"seconds", "s"},
+          {"cpu_seconds", "s"},
+          {"bytes", "bytes"}};
+}
+
+nlohmann::json files_json(const std::vector<RunSummary::FileRecord>& files) {
+  nlohmann::json j = nlohmann::json::array();
+  for (const auto& f : files) {
+    nlohmann::json e = {{"file", f.file}, {"bytes", f.bytes}, {"sha256", f.sha256}};
+    if (!f.kind.empty()) e["kind"] = f.kind;
+    j.push_back(e);
+  }
+  return j;
+}
 }  // namespace
 
 std::string report_json(const PipelineConfig& cfg, const RunSummary& sum) {
@@ -495,6 +584,7 @@ std::string report_json(const PipelineConfig& cfg, const RunSummary& sum) {
   j["pcd_pipeline"] = {{"version", PCDP_VERSION},
                        {"eigen", std::to_string(EIGEN_WORLD_VERSION) + "." + std::to_string(EIGEN_MAJOR_VERSION) +
                                      "." + std::to_string(EIGEN_MINOR_VERSION)}};
+  j["started_at"] = sum.started_at;
   nlohmann::json c;
   c["pipeline_file"] = cfg.source;
   c["rpy_order"] = rpy_order_name(cfg.rpy_order);
@@ -513,6 +603,10 @@ std::string report_json(const PipelineConfig& cfg, const RunSummary& sum) {
   j["input_returns"] = sum.input_returns;
   j["kept"] = sum.labels[0];
   j["labels"] = labels_json(sum.labels);
+  j["label_codes"] = label_codes_json();
+  j["units"] = units_json();
+  j["inputs"] = files_json(sum.input_files);
+  j["outputs"] = files_json(sum.output_files);
   j["passes"] = nlohmann::json::array();
   for (const auto& p : sum.passes)
     j["passes"].push_back({{"file", p.file}, {"returns", p.returns}, {"lines", p.lines}, {"kept", p.kept}});

@@ -313,4 +313,37 @@ TEST(Import3dtk, LinesOfDifferentLengthsAskForTheCount) {
   test::write_text(dir + "/flat.pose", "0 0 0\n0 0 0\n");
   EXPECT_NE(input_error_of([&] { io::import_3dtk({dir + "/flat.3d"}, false); }).find("no two points with different bearings"),
             std::string::npos);
+#include "pcdp/config.hpp"
+#include "pcdp/pipeline.hpp"
+
+TEST(ImportScans, OurCloudPcdGivesItsAmplitudesUnderEitherName) {
+  // cloud.pcd names the amplitude `intensity`; versions up to 0.1.0 wrote `amplitude`. import
+  // cloud takes either as the amplitude (both names have 9 letters: only the header changes).
+  const std::string dir = test::fresh_dir();
+  const sim::SimConfig cfg = test::small_sim_config();
+  sim::write_run(sim::simulate(cfg), cfg, dir);
+  test::write_text(dir + "/p.yaml", test::pipeline_yaml(cfg, dir, dir + "/out"));
+  (void)Pipeline::prepare(load_pipeline(dir + "/p.yaml")).run();
+  const std::string now = test::read_text(dir + "/out/cloud.pcd");
+  const auto fields = now.find("FIELDS x y z range intensity ");
+  ASSERT_NE(fields, std::string::npos) << now.substr(0, 300);
+  std::string old = now;
+  old.replace(fields + 19, 9, "amplitude");
+  test::write_text(dir + "/old.pcd", old);
+  const Eigen::Vector3d vp(0, 0, 2);
+  const io::ImportedScans a = io::import_cloud({dir + "/out/cloud.pcd"}, &vp);
+  const io::ImportedScans b = io::import_cloud({dir + "/old.pcd"}, &vp);
+  ASSERT_EQ(a.passes.size(), 1u);
+  ASSERT_EQ(b.passes.size(), 1u);
+  const auto& amp = a.passes[0].amplitude;
+  ASSERT_GT(amp.size(), 100u);
+  std::size_t measured = 0;
+  for (const float v : amp) measured += std::isfinite(v) && v != 0.0f;
+  EXPECT_GT(measured, amp.size() / 2) << "the amplitudes were not read";
+  ASSERT_EQ(b.passes[0].amplitude.size(), amp.size());
+  for (std::size_t i = 0; i < amp.size(); ++i) {
+    if (std::isfinite(amp[i]) || std::isfinite(b.passes[0].amplitude[i])) {
+      ASSERT_EQ(b.passes[0].amplitude[i], amp[i]) << i;
+    }
+  }
 }

@@ -95,3 +95,53 @@ TEST(PclInterop, OurPlyReaderReadsWhatPclWrites) {
     }
   }
 }
+
+#include <map>
+
+#include "pcdp/config.hpp"
+#include "pcdp/pipeline.hpp"
+
+TEST(PclInterop, CloudPcdLoadsIntoPointXYZIWithTheAmplitudeAsIntensity) {
+  // A pipeline run's cloud.pcd (and returns.pcd) into pcl::PointXYZI: PCL fills a field by its
+  // name, so the amplitude reaches `intensity` only if the file calls it that.
+  const std::string dir = test::fresh_dir();
+  const sim::SimConfig cfg = test::small_sim_config();
+  sim::write_run(sim::simulate(cfg), cfg, dir);
+  test::write_text(dir + "/p.yaml", test::pipeline_yaml(cfg, dir, dir + "/out"));
+  (void)Pipeline::prepare(load_pipeline(dir + "/p.yaml")).run();
+
+  // The amplitude of every input return, by (line, beam).
+  std::map<std::pair<double, double>, double> amp;
+  for (int k = 0; k < static_cast<int>(cfg.passes); ++k) {
+    char name[32];
+    std::snprintf(name, sizeof name, "/pass_%03d.pcd", k);
+    const io::PcdTable in = io::read_pcd(dir + name);
+    const auto line = test::column(in, "line"), beam = test::column(in, "beam"), a = test::column(in, "amplitude");
+    for (std::size_t i = 0; i < line.size(); ++i) amp[{line[i], beam[i]}] = a[i];
+  }
+  ASSERT_GT(amp.size(), 1000u);
+
+  for (const char* product : {"cloud.pcd", "returns.pcd"}) {
+    const std::string path = dir + "/out/" + product;
+    pcl::PointCloud<pcl::PointXYZI> cloud;
+    ASSERT_EQ(pcl::io::loadPCDFile<pcl::PointXYZI>(path, cloud), 0) << product;
+    const io::PcdTable t = io::read_pcd(path);
+    ASSERT_EQ(cloud.size(), t.header.points) << product;
+    ASSERT_GT(cloud.size(), 1000u) << product;
+    const auto line = test::column(t, "line"), beam = test::column(t, "beam"), x = test::column(t, "x");
+    std::size_t nonzero = 0, compared = 0, mismatched = 0;
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+      const auto it = amp.find({line[i], beam[i]});
+      ASSERT_NE(it, amp.end()) << product << " row " << i;
+      const float want = static_cast<float>(it->second);
+      if (std::isnan(want)) continue;
+      ++compared;
+      nonzero += want != 0.0f;  // PCL leaves a field it does not find at 0
+      mismatched += cloud[i].intensity != want;
+      if (std::isfinite(x[i])) EXPECT_FLOAT_EQ(cloud[i].x, static_cast<float>(x[i])) << product << " row " << i;
+    }
+    EXPECT_GT(compared, cloud.size() / 2) << product;
+    EXPECT_EQ(mismatched, 0u) << product << ": PCL's intensity is not the return's amplitude";
+    EXPECT_GT(nonzero, compared / 2) << product << ": too few non-zero amplitudes for the comparison to mean anything";
+  }
+}

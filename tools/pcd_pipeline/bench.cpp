@@ -216,7 +216,32 @@ int run_scaling(const BenchArgs& a, const fs::path& scratch) {
 
 }  // namespace
 
-int cmd_bench(const BenchArgs& a) {
+std::string bench_data_root() {
+  const char* want = "sample_scans/scene.yaml";
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  const fs::path installed = ec ? fs::path() : exe.parent_path().parent_path() / "share" / "pcd_pipeline";
+  if (!installed.empty() && fs::is_regular_file(installed / want, ec)) return installed.string();
+#ifdef PCDP_BUILD_SOURCE_DIR
+  const fs::path source = PCDP_BUILD_SOURCE_DIR;
+  if (fs::is_regular_file(source / want, ec)) return source.string();
+#else
+  const fs::path source;
+#endif
+  throw ConfigError("bench: no sample data for the default --scene and --pipeline: neither " +
+                    (installed.empty() ? std::string("<prefix>/share/pcd_pipeline") : installed.string()) +
+                    (source.empty() ? std::string() : " nor " + source.string()) + " has " + want +
+                    " (install pcd_pipeline with cmake --install, or give --scene and --pipeline)");
+}
+
+int cmd_bench(BenchArgs a) {
+  if (a.scene.empty() || a.pipeline.empty()) {
+    const fs::path root = bench_data_root();
+    if (a.scene.empty()) a.scene = (root / "sample_scans" / "scene.yaml").string();
+    if (a.pipeline.empty()) a.pipeline = (root / "pipelines" / "nodding_terrain.yaml").string();
+  }
+  // The --scaling runs are child processes: the pipeline by an absolute path, whatever they inherit.
+  a.pipeline = fs::absolute(a.pipeline).string();
   if (a.passes < 1 || a.passes > 1000) throw ConfigError("--passes " + std::to_string(a.passes) + " is outside 1 .. 1000");
   if (a.reps < 1 || a.reps > 100) throw ConfigError("--reps " + std::to_string(a.reps) + " is outside 1 .. 100");
   // Prepare first: a bad pipeline or scene fails before anything is simulated.

@@ -10,15 +10,23 @@
 namespace pcdp::cli {
 
 struct BenchArgs {
-  std::string scene = "sample_scans/scene.yaml";
-  std::string pipeline = "pipelines/nodding_terrain.yaml";
+  /// Empty: sample_scans/scene.yaml and pipelines/nodding_terrain.yaml of the installed data
+  /// (<prefix>/share/pcd_pipeline, beside <prefix>/bin) or, for a binary in its build tree, of the
+  /// source tree it was built from (bench_data_root); never of the working directory.
+  std::string scene;
+  std::string pipeline;
   int passes = 4;
   int reps = 3;
   bool geometric = false;
   std::string scaling;  ///< "1,10,100": also run the scaling table
 };
 
-int cmd_bench(const BenchArgs& a);
+int cmd_bench(BenchArgs a);
+
+/// The folder that holds sample_scans/ and pipelines/ for bench's defaults: <exe>/../share/pcd_pipeline
+/// when it has them (an installed binary), else the source tree the binary was built from. Throws
+/// ConfigError naming both places when neither has them.
+std::string bench_data_root();
 
 struct PeerTimes {
   double transform = 0;  ///< pcl::transformPointCloud over all points, median seconds

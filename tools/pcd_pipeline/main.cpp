@@ -181,8 +181,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 24));
   cli::BenchArgs bench;
   CLI::App* bch = app.add_subcommand("bench", "time the chain stage by stage against PCL, OctoMap and a plain loop, same data");
-  bch->add_option("--scene", bench.scene, "scene to simulate")->capture_default_str();
-  bch->add_option("--pipeline", bench.pipeline, "pipeline to time (its input is replaced)")->capture_default_str();
+  bch->add_option("--scene", bench.scene, "scene to simulate (default: the installed or source tree's sample_scans/scene.yaml)");
+  bch->add_option("--pipeline", bench.pipeline,
+                  "pipeline to time, its input replaced (default: the installed or source tree's pipelines/nodding_terrain.yaml)");
   bch->add_option("--passes", bench.passes, "passes to simulate")->capture_default_str();
   bch->add_option("--reps", bench.reps, "repetitions (the median is reported)")->capture_default_str();
   bch->add_flag("--geometric", bench.geometric, "geometric simulator (no beam footprint), faster to generate");

@@ -60,7 +60,7 @@ struct PipelineConfig {
   std::vector<std::string> scan_patterns;  ///< as written (paths or globs), resolved
   std::vector<std::string> scans;          ///< expanded pass files, in run order
   std::string poses;                       ///< pose CSV; empty: T_M_V = identity
-  std::string output_dir;
+  std::string output_dir;                  ///< as given, or out/<file stem> (relative to the working directory)
   MountParams mount;
   SensorParams sensor;
   PoseSigma pose_sigma;

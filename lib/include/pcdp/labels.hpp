@@ -24,6 +24,8 @@ inline constexpr std::size_t kLabelCount = 9;
 
 /// snake_case name of a label ("kept", "no_return", ...), as used in report.json and the docs.
 const char* label_name(Label l);
+/// One sentence on what the label means (docs/data_contract.md "Labels"; report.json's label_codes).
+const char* label_meaning(Label l);
 /// Label from its name; throws std::invalid_argument for an unknown name.
 Label label_from_name(const std::string& name);
 

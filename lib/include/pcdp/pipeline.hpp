@@ -40,6 +40,17 @@ struct RunSummary {
   std::vector<Phase> phases;
   std::string output_dir;
   std::vector<std::string> outputs;  ///< final paths written
+  /// When the run started: UTC, ISO 8601 to the second ("2026-11-25T18:40:12Z").
+  std::string started_at;
+  /// A file the run read or wrote, with its size and SHA-256 (report.json `inputs` and `outputs`).
+  struct FileRecord {
+    std::string file;  ///< inputs: the path as configured; outputs: the product's name in output_dir
+    std::string kind;  ///< inputs: "scan" or "poses"; outputs: empty
+    std::uint64_t bytes = 0;
+    std::string sha256;
+  };
+  std::vector<FileRecord> input_files;
+  std::vector<FileRecord> output_files;  ///< every product but report.json, by name
   /// The map origin the products are relative to (pcdp/georef.hpp); zero: absolute.
   Eigen::Vector3d map_origin = Eigen::Vector3d::Zero();
 };

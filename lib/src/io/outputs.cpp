@@ -11,9 +11,12 @@
 namespace pcdp::io {
 
 namespace {
+// The amplitude is written as `intensity`, the name PCL's point types (pcl::PointXYZI) and most
+// tools give it, so loadPCDFile<pcl::PointXYZI> fills it. Files of versions up to 0.1 name it
+// `amplitude`: our readers accept both (io::amplitude_field).
 std::vector<PcdField> base_fields(bool with_label) {
   std::vector<PcdField> f = {{"x", 'F', 4, 1},     {"y", 'F', 4, 1},    {"z", 'F', 4, 1},
-                             {"range", 'F', 4, 1}, {"amplitude", 'F', 4, 1}, {"pass", 'U', 4, 1},
+                             {"range", 'F', 4, 1}, {"intensity", 'F', 4, 1}, {"pass", 'U', 4, 1},
                              {"line", 'U', 4, 1},  {"beam", 'U', 4, 1}};
   if (with_label) {
     f.push_back({"label", 'U', 1, 1});
@@ -148,6 +151,11 @@ void CloudWriter::append(const Pass& pass) {
     ++n;
   }
   writer_.append(rows.data(), n);
+}
+
+int amplitude_field(const PcdHeader& h) {
+  const int k = h.field_index("intensity");
+  return k >= 0 ? k : h.field_index("amplitude");
 }
 
 }  // namespace pcdp::io

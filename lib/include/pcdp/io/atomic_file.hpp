@@ -72,6 +72,8 @@ class StagedOutputs final : public OutputSink {
   std::string final_path(const std::string& filename) const;
   /// The final paths of everything staged so far.
   std::vector<std::string> final_paths() const;
+  /// The names of everything staged so far, in the order staged.
+  const std::vector<std::string>& names() const { return names_; }
   /// Swaps the new set into place. Throws OutputError (the old set intact) if it cannot.
   /// Warnings (the old set could not be removed: the next run removes it) go to stderr.
   void commit();
