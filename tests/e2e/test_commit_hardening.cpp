@@ -275,7 +275,7 @@ TEST(CommitHardeningCli, UnwritableOutputsExitWith4InEverySubcommand) {
   const std::vector<std::vector<std::string>> cases = {
       {"run", d.yaml, "-q", "--output-dir", through},
       {"run", d.yaml, "-q", "--output-dir", file},
-      {"merge", tif, tif2, "-o", through},
+      {"merge", tif, tif2, "-o", through + ".tif"},
       {"merge", tif, tif2, "-o", d.dir + "/m.tif", "--png", through},
       {"simulate", scene, "--output-dir", through},
       {"clean-cloud", cloud, "-o", through + ".pcd"},  // the extension names the format (.pcd, .ply, .las)

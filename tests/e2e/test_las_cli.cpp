@@ -211,3 +211,12 @@ TEST(LasCli, CleanCloudRefusesAViewpointThePointsRangesContradict) {
   r = run_cli({"clean-cloud", one, "-o", dir + "/one_clean.pcd"});
   EXPECT_EQ(r.exit_code, 0) << r.err;
 }
+
+TEST(LasCli, MergeRefusesAnOutputThatIsNotATiff) {
+  const std::string dir = test::fresh_dir("merge_ext");
+  const auto r = run_cli({"merge", dir + "/a.tif", dir + "/b.tif", "-o", dir + "/m.ply"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("merge --output '" + dir + "/m.ply': extension '.ply'; merge writes a GeoTIFF: use .tif or .tiff"),
+            std::string::npos)
+      << r.err;
+}

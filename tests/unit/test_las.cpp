@@ -303,3 +303,23 @@ TEST(Las, FuzzCorpusSeedsReadOrFailCleanly) {
   EXPECT_GE(seeds, 7u);
   EXPECT_EQ(read, seeds - 1);
 }
+
+TEST(Las, ImportCloudRefusesAViewpointFarFromMostPoints) {
+  // The rule: at least half of the points within max_range of the viewpoint. Distances from
+  // (1000, 2001, 3): 7.99 m, 6.65 m and 21.7 m.
+  const std::string p = write("rule.las", make_las(2, 1, kPts));
+  const Eigen::Vector3d vp(1000, 2001, 3);
+  io::ImportOptions opt;
+  opt.max_range = 12;  // one of three out of reach: accepted
+  EXPECT_EQ(io::import_cloud({p}, &vp, opt).passes.at(0).size(), 3u);
+  opt.max_range = 7;  // two of three: refused, naming the counts and the rule
+  try {
+    io::import_cloud({p}, &vp, opt);
+    FAIL() << "accepted";
+  } catch (const ConfigError& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("(--viewpoint) is farther than the maximum range 7.000 m from 2 of the 3 points"), std::string::npos) << m;
+    EXPECT_NE(m.find("at least half of the points within --max-range of the viewpoint"), std::string::npos) << m;
+    EXPECT_NE(m.find("above the centre, 1004.505,2010.005,10.750), and --max-range of at least 19.000 m"), std::string::npos) << m;
+  }
+}

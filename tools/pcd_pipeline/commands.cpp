@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -497,6 +498,14 @@ int cmd_error_budget(const RunArgs& a, const std::string& svg, const std::string
 
 int cmd_merge(const std::vector<std::string>& inputs, const std::string& output, const std::string& png, unsigned threads) {
   if (inputs.size() < 2) throw ConfigError("merge: give two or more elevation grids to merge");
+  {  // -o honours its extension: merge writes a GeoTIFF only
+    const std::string ext = std::filesystem::path(output).extension().string();
+    std::string low = ext;
+    for (auto& c : low) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (low != ".tif" && low != ".tiff")
+      throw ConfigError("merge --output '" + output + "': " + (ext.empty() ? "no extension" : "extension '" + ext + "'") +
+                        "; merge writes a GeoTIFF: use .tif or .tiff");
+  }
   io::check_distinct_grids(inputs);  // the same grid twice would count its passes twice
   io::StagedFiles staged;  // checked and locked before the work; the .tif and the PNG committed as a set
   const std::string tif_tmp = staged.add("merge --output", output);
