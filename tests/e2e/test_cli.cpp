@@ -857,11 +857,12 @@ std::string expect_same_outputs_on_one_and_two_threads(const std::vector<std::st
       // takes the results in order (with a little slack for clock ticks).
       for (const auto* jr : {&ja, &jb}) {
         const auto& ph = (*jr)["phases"];
-        EXPECT_EQ(ph.size(), 3u) << ph.dump();
-        if (ph.size() != 3u) continue;
+        EXPECT_EQ(ph.size(), 4u) << ph.dump();
+        if (ph.size() != 4u) continue;
         EXPECT_EQ(ph[0]["phase"], "prepass check_consistency");
         EXPECT_EQ(ph[1]["phase"], "passes");
         EXPECT_EQ(ph[2]["phase"], "finish");
+        EXPECT_EQ(ph[3]["phase"], "digest");  // the sizes and hashes of report.json's inputs and outputs
         double wall = 0.0;
         for (const auto& p : ph) {
           const double sec = p["seconds"], cpu = p["cpu_seconds"];
