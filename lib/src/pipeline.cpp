@@ -568,6 +568,7 @@ nlohmann::json units_json() {
           {"elevation", "m"},
           {"variance", "m^2"},
           {"count", "returns"},
+          {"passes", "passes"},
           {"min", "m"},
           {"max", "m"},
           {"map_origin", "m"},
