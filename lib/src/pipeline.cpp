@@ -478,6 +478,10 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
       io::FileDigest d;
       const std::string path = input ? r.file : (std::filesystem::path(out.staging_dir()) / r.file).string();
       if (const int err = io::digest_file(path, d)) {
+        if (!input && err == ENOENT) {  // a name staged and never written is no product
+          r.sha256.clear();
+          return;
+        }
         if (input)
           throw InputError(r.file + ": cannot read it again to hash it for report.json (" + std::strerror(err) +
                            "): was it changed or removed during the run?");
@@ -487,6 +491,9 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
       r.bytes = d.bytes;
       r.sha256 = std::move(d.sha256);
     });
+    sum.output_files.erase(std::remove_if(sum.output_files.begin(), sum.output_files.end(),
+                                          [](const RunSummary::FileRecord& r) { return r.sha256.empty(); }),
+                           sum.output_files.end());
   }
   sum.seconds = seconds_since(t_run);
   {
@@ -543,7 +550,8 @@ nlohmann::json units_json() {
           {"y", "m"},
           {"z", "m"},
           {"range", "m"},
-          {"intensity", "sensor units (the received amplitude)"},
+          {"amplitude", "sensor units"},
+          {"intensity", "sensor units (the amplitude)"},
           {"pass", "index (0-based, into config.input.scans)"},
           {"line", "index"},
           {"beam", "index"},
@@ -560,6 +568,7 @@ nlohmann::json units_json() {
           {"elevation", "m"},
           {"variance", "m^2"},
           {"count", "returns"},
+          {"passes", "passes"},
           {"min", "m"},
           {"max", "m"},
           {"map_origin", "m"},

@@ -317,18 +317,19 @@ TEST(Import3dtk, LinesOfDifferentLengthsAskForTheCount) {
 #include "pcdp/pipeline.hpp"
 
 TEST(ImportScans, OurCloudPcdGivesItsAmplitudesUnderEitherName) {
-  // cloud.pcd names the amplitude `intensity`; versions up to 0.1.0 wrote `amplitude`. import
-  // cloud takes either as the amplitude (both names have 9 letters: only the header changes).
+  // cloud.pcd has the amplitude as `amplitude` and `intensity`; versions up to 0.1.0 wrote
+  // `amplitude` only. import cloud takes either. The old file: `intensity` renamed to a field of
+  // the same length that means nothing (only the header changes).
   const std::string dir = test::fresh_dir();
   const sim::SimConfig cfg = test::small_sim_config();
   sim::write_run(sim::simulate(cfg), cfg, dir);
   test::write_text(dir + "/p.yaml", test::pipeline_yaml(cfg, dir, dir + "/out"));
   (void)Pipeline::prepare(load_pipeline(dir + "/p.yaml")).run();
   const std::string now = test::read_text(dir + "/out/cloud.pcd");
-  const auto fields = now.find("FIELDS x y z range intensity ");
+  const auto fields = now.find("FIELDS x y z range amplitude intensity ");
   ASSERT_NE(fields, std::string::npos) << now.substr(0, 300);
   std::string old = now;
-  old.replace(fields + 19, 9, "amplitude");
+  old.replace(fields + 29, 9, "unrelated");
   test::write_text(dir + "/old.pcd", old);
   const Eigen::Vector3d vp(0, 0, 2);
   const io::ImportedScans a = io::import_cloud({dir + "/out/cloud.pcd"}, &vp);

@@ -103,7 +103,8 @@ TEST(PclInterop, OurPlyReaderReadsWhatPclWrites) {
 
 TEST(PclInterop, CloudPcdLoadsIntoPointXYZIWithTheAmplitudeAsIntensity) {
   // A pipeline run's cloud.pcd (and returns.pcd) into pcl::PointXYZI: PCL fills a field by its
-  // name, so the amplitude reaches `intensity` only if the file calls it that.
+  // name, so the amplitude reaches `intensity` only if the file has a field of that name (beside
+  // `amplitude`, the data contract's name).
   const std::string dir = test::fresh_dir();
   const sim::SimConfig cfg = test::small_sim_config();
   sim::write_run(sim::simulate(cfg), cfg, dir);
@@ -127,6 +128,7 @@ TEST(PclInterop, CloudPcdLoadsIntoPointXYZIWithTheAmplitudeAsIntensity) {
     ASSERT_EQ(pcl::io::loadPCDFile<pcl::PointXYZI>(path, cloud), 0) << product;
     const io::PcdTable t = io::read_pcd(path);
     ASSERT_EQ(cloud.size(), t.header.points) << product;
+    EXPECT_GE(t.header.field_index("amplitude"), 0) << product << ": the data contract's name";
     ASSERT_GT(cloud.size(), 1000u) << product;
     const auto line = test::column(t, "line"), beam = test::column(t, "beam"), x = test::column(t, "x");
     std::size_t nonzero = 0, compared = 0, mismatched = 0;
@@ -138,7 +140,9 @@ TEST(PclInterop, CloudPcdLoadsIntoPointXYZIWithTheAmplitudeAsIntensity) {
       ++compared;
       nonzero += want != 0.0f;  // PCL leaves a field it does not find at 0
       mismatched += cloud[i].intensity != want;
-      if (std::isfinite(x[i])) EXPECT_FLOAT_EQ(cloud[i].x, static_cast<float>(x[i])) << product << " row " << i;
+      if (std::isfinite(x[i])) {
+        EXPECT_FLOAT_EQ(cloud[i].x, static_cast<float>(x[i])) << product << " row " << i;
+      }
     }
     EXPECT_GT(compared, cloud.size() / 2) << product;
     EXPECT_EQ(mismatched, 0u) << product << ": PCL's intensity is not the return's amplitude";

@@ -34,7 +34,9 @@ std::string streaming_yaml(const std::string &out_dir, bool with_poses,
     if (l.rfind("  poses:", 0) == 0 && !with_poses)
       continue;
     if (l.rfind("output_dir:", 0) == 0)
-      l = "output_dir: " + out_dir;
+      continue;
+    if (l.rfind("stages:", 0) == 0)  // before the stage list, which callers may extend
+      y << "output_dir: " << out_dir << "\n";
     y << l << "\n";
     if (l.find("type: reject_mixed_pixels") != std::string::npos &&
         !mixed_options.empty())

@@ -610,7 +610,7 @@ ImportedScans import_cloud(const std::vector<std::string>& files, const Eigen::V
       const auto x = column_values(t, static_cast<std::size_t>(ix)), y = column_values(t, static_cast<std::size_t>(iy)),
                  z = column_values(t, static_cast<std::size_t>(iz));
       for (std::size_t i = 0; i < x.size(); ++i) pts.push_back({x[i], y[i], z[i]});
-      const int ii = amplitude_field(t.header);  // intensity, or amplitude (our clouds up to 0.1.0)
+      const int ii = amplitude_field(t.header);  // intensity, else amplitude (our clouds up to 0.1.0)
       if (ii >= 0)
         for (const double a : column_values(t, static_cast<std::size_t>(ii))) s.amp.push_back(static_cast<float>(a));
       if (t.header.height > 1) {

@@ -11,13 +11,14 @@
 namespace pcdp::io {
 
 namespace {
-// The amplitude is written as `intensity`, the name PCL's point types (pcl::PointXYZI) and most
-// tools give it, so loadPCDFile<pcl::PointXYZI> fills it. Files of versions up to 0.1 name it
-// `amplitude`: our readers accept both (io::amplitude_field).
+// The amplitude twice: as `amplitude` (the data contract's name) and as `intensity`, the name
+// PCL's point types (pcl::PointXYZI) and most tools give it, so loadPCDFile<pcl::PointXYZI> fills
+// it. Files of version 0.1.0 and earlier have `amplitude` only: our readers take `intensity`, else
+// `amplitude` (io::amplitude_field).
 std::vector<PcdField> base_fields(bool with_label) {
-  std::vector<PcdField> f = {{"x", 'F', 4, 1},     {"y", 'F', 4, 1},    {"z", 'F', 4, 1},
-                             {"range", 'F', 4, 1}, {"intensity", 'F', 4, 1}, {"pass", 'U', 4, 1},
-                             {"line", 'U', 4, 1},  {"beam", 'U', 4, 1}};
+  std::vector<PcdField> f = {{"x", 'F', 4, 1},         {"y", 'F', 4, 1},         {"z", 'F', 4, 1},
+                             {"range", 'F', 4, 1},     {"amplitude", 'F', 4, 1}, {"intensity", 'F', 4, 1},
+                             {"pass", 'U', 4, 1},      {"line", 'U', 4, 1},      {"beam", 'U', 4, 1}};
   if (with_label) {
     f.push_back({"label", 'U', 1, 1});
     f.push_back({"flags", 'U', 1, 1});
@@ -60,6 +61,7 @@ std::uint8_t* put_common(std::uint8_t* d, const Pass& p, std::size_t i) {
   d = put(d, static_cast<float>(p.z[i]));
   d = put(d, p.range_cal.empty() ? p.range[i] : p.range_cal[i]);
   d = put(d, p.amplitude[i]);
+  d = put(d, p.amplitude[i]);  // intensity
   d = put(d, static_cast<std::uint32_t>(p.index));
   d = put(d, p.line[i]);
   d = put(d, p.beam[i]);

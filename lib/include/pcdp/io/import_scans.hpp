@@ -20,7 +20,7 @@
 //    filters see neighbours across lines too; otherwise beams count along the line;
 //  - no times are recorded: stamps are synthetic (13.3 ms lines), pipelines use
 //    skew_correction: false; no intensity unless the cloud has a field `intensity` (or
-//    `amplitude`, as cloud.pcd named it up to 0.1.0);
+//    `amplitude`, cloud.pcd's only name for it up to 0.1.0);
 //  - the nod axis passes through `nod_origin` (in the scan's frame; 0 by default): a scan whose
 //    origin is not on the nod axis (octomap's scan.dat: its points fit a laser 0.5 m above the
 //    origin) rebuilds badly until it is set; estimate_nod_origin finds it from the data;

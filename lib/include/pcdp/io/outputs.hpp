@@ -15,7 +15,7 @@ struct Pass;
 
 namespace pcdp::io {
 
-/// returns.pcd: x y z range intensity (the amplitude) pass line beam label flags stamp, then the input's extra fields
+/// returns.pcd: x y z range amplitude intensity (the amplitude again, PCL's name) pass line beam label flags stamp, then the input's extra fields
 /// (carried through). x y z are NaN where there is no point.
 /// `map_origin`: the origin the passes' coordinates are relative to, written in the header as the
 /// comment "# map_origin X Y Z" when not 0 (map coordinates = x y z + map_origin). Not VIEWPOINT:
@@ -35,7 +35,7 @@ class ReturnsWriter {
   Eigen::Vector3d origin_;
 };
 
-/// cloud.pcd: the kept points, x y z range intensity (the amplitude) pass line beam stamp, their covariance
+/// cloud.pcd: the kept points, x y z range amplitude intensity (the amplitude again, PCL's name) pass line beam stamp, their covariance
 /// cov_xx cov_xy cov_xz cov_yy cov_yz cov_zz (m^2; cov_zz is the vertical variance) and sigma_h
 /// (m, 1-sigma major semi-axis of the horizontal covariance). NaN when not computed.
 class CloudWriter {
@@ -49,8 +49,9 @@ class CloudWriter {
   PcdWriter writer_;
 };
 
-/// The column of a PCD that holds the amplitude: `intensity` (what returns.pcd and cloud.pcd write,
-/// and PCL's name), else `amplitude` (their name up to version 0.1.0); -1 when neither is there.
+/// The column of a PCD that holds the amplitude: `intensity` (PCL's name, which returns.pcd and
+/// cloud.pcd write beside `amplitude`), else `amplitude` (their only name up to version 0.1.0);
+/// -1 when neither is there.
 int amplitude_field(const PcdHeader& h);
 
 }  // namespace pcdp::io
