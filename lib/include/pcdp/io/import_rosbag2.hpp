@@ -1,7 +1,7 @@
 // Importer of ROS 2 bags (storage sqlite3: `*.db3` + metadata.yaml, serialization CDR) of a 2-D
 // scanner on a tilt axis, to the raw-pass contract: sensor_msgs/msg/LaserScan plus a tilt topic
-// (a std_msgs number, or one joint of a sensor_msgs/msg/JointState), optionally
-// nav_msgs/msg/Odometry as the pose file.
+// (a std_msgs number, or one joint of a sensor_msgs/msg/JointState), optionally poses from
+// nav_msgs/msg/Odometry or tf (tf2_msgs/msg/TFMessage) as the pose file.
 //
 // What it assumes:
 //  - the bag: a folder with metadata.yaml (storage_identifier sqlite3, no compression; its
