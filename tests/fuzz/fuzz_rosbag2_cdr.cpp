@@ -16,7 +16,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::uint8_t* msg = data + 1;
   const std::size_t n = size - 1;
   try {
-    switch (pick % 4) {
+    switch (pick % 5) {
       case 0: {
         const auto m = pcdp::io::cdr::decode_laser_scan(msg, n);
         if (m.ranges.size() * 4 > n || m.intensities.size() * 4 > n) __builtin_trap();
@@ -30,8 +30,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       case 2:
         pcdp::io::cdr::decode_odometry(msg, n);
         break;
+      case 3: {
+        const auto m = pcdp::io::cdr::decode_tf_message(msg, n);
+        if (m.transforms.size() * 74 > n) __builtin_trap();
+        break;
+      }
       default:
-        pcdp::io::cdr::decode_number(kNumbers[(pick / 4) % 8], msg, n);
+        pcdp::io::cdr::decode_number(kNumbers[(pick / 5) % 8], msg, n);
         break;
     }
   } catch (const pcdp::InputError&) {

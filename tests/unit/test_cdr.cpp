@@ -206,6 +206,85 @@ TEST(Cdr, MalformedFieldsAreRefused) {
             std::string::npos);
 }
 
+namespace {
+/// A TFMessage of two transforms (the second with a frame name of odd length: padding before the float64s).
+std::vector<std::uint8_t> tf_message(bool le) {
+  W w(le);
+  w.put(2, 4);
+  w.header("odom");
+  w.str("base_link");
+  for (double x : {1.5, -2.0, 0.25, 0.0, 0.0, 0.6, 0.8}) w.f64(x);
+  w.put(7, 4);
+  w.put(999999999, 4);
+  w.str("map");
+  w.str("odom");
+  for (double x : {10.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0}) w.f64(x);
+  return w.b;
+}
+}  // namespace
+
+TEST(Cdr, TfMessageInBothByteOrders) {
+  for (bool le : {true, false}) {
+    const auto msg = tf_message(le);
+    const cdr::TFMessage m = cdr::decode_tf_message(msg.data(), msg.size());
+    ASSERT_EQ(m.transforms.size(), 2u);
+    const cdr::TransformStamped& a = m.transforms[0];
+    EXPECT_EQ(a.header.stamp.sec, 634);
+    EXPECT_EQ(a.header.frame_id, "odom");
+    EXPECT_EQ(a.child_frame_id, "base_link");
+    EXPECT_EQ(a.tx, 1.5);
+    EXPECT_EQ(a.ty, -2.0);
+    EXPECT_EQ(a.tz, 0.25);
+    EXPECT_EQ(a.qz, 0.6);
+    EXPECT_EQ(a.qw, 0.8);
+    const cdr::TransformStamped& b = m.transforms[1];
+    EXPECT_EQ(b.header.stamp.sec, 7);
+    EXPECT_EQ(b.header.stamp.nanosec, 999999999u);
+    EXPECT_EQ(b.header.frame_id, "map");
+    EXPECT_EQ(b.child_frame_id, "odom");
+    EXPECT_EQ(b.tx, 10.0);
+    EXPECT_EQ(b.qw, 1.0);
+    // An empty TFMessage is valid.
+    W e(le);
+    e.put(0, 4);
+    EXPECT_TRUE(cdr::decode_tf_message(e.b.data(), e.b.size()).transforms.empty());
+  }
+}
+
+TEST(Cdr, TfMessageTruncationsAndBadCountsAreRefused) {
+  for (bool le : {true, false}) {
+    const auto msg = tf_message(le);
+    for (std::size_t n = 0; n < msg.size(); ++n) {
+      const std::string e = error_of([&] { cdr::decode_tf_message(msg.data(), n); });
+      ASSERT_EQ(e.rfind("byte ", 0), 0u) << n << ": " << e;
+    }
+    // Cut in the second transform's rotation.w (payload 176 .. 184).
+    EXPECT_EQ(error_of([&] { cdr::decode_tf_message(msg.data(), msg.size() - 5); }),
+              "byte 180: truncated: transforms.transform.rotation.w needs 8 byte(s), 3 left");
+    // A count of 3 for two transforms: 180 bytes after the count cannot hold three of at least 74.
+    auto three = msg;
+    three[le ? 4 : 7] = 3;
+    EXPECT_EQ(error_of([&] { cdr::decode_tf_message(three.data(), three.size()); }),
+              "byte 4: transforms: sequence of 3 element(s) of 74 byte(s) is longer than the 180 byte(s) left");
+    // A count of 2^32 - 1: refused before anything is allocated.
+    auto big = msg;
+    std::memset(big.data() + 4, 0xFF, 4);
+    EXPECT_EQ(error_of([&] { cdr::decode_tf_message(big.data(), big.size()); }),
+              "byte 4: transforms: sequence of 4294967295 element(s) of 74 byte(s) is longer than the 180 byte(s) left");
+    // A nanosec of 1e9, a trailing transform-sized tail (not a TFMessage).
+    auto ns = msg;
+    const std::uint32_t bad = 1000000000u;
+    for (int k = 0; k < 4; ++k) ns[104 + k] = static_cast<std::uint8_t>(bad >> (8 * (le ? k : 3 - k)));
+    EXPECT_EQ(error_of([&] { cdr::decode_tf_message(ns.data(), ns.size()); }),
+              "byte 104: header.stamp.nanosec 1000000000 is not below 1e9");
+    auto tail = msg;
+    tail.insert(tail.end(), 8, 0);
+    EXPECT_NE(error_of([&] { cdr::decode_tf_message(tail.data(), tail.size()); })
+                  .find("byte 188: 8 byte(s) after the end of the tf2_msgs/msg/TFMessage message"),
+              std::string::npos);
+  }
+}
+
 TEST(TiltGeometry, DefaultsAreTheRplidarRigAndTheOptionsCompose) {
   const TiltGeometry g;
   // Bit for bit what import rplidar computed before the geometry became options.
@@ -223,7 +302,8 @@ TEST(TiltGeometry, DefaultsAreTheRplidarRigAndTheOptionsCompose) {
   EXPECT_THROW(h.check("t"), ConfigError);
 }
 
-// The fuzz target's seeds (tests/fuzz/corpus/rosbag2_cdr: first byte = message type) are valid
+// The fuzz target's seeds (tests/fuzz/corpus/rosbag2_cdr: first byte = message type, as in
+// fuzz_rosbag2_cdr.cpp: 0 LaserScan, 1 JointState, 2 Odometry, 3 TFMessage, 4 numbers) are valid
 // messages: each decodes, in every ordinary build.
 TEST(Cdr, FuzzSeedsDecode) {
   std::size_t n = 0;
@@ -237,15 +317,16 @@ TEST(Cdr, FuzzSeedsDecode) {
                                            "std_msgs/msg/Int16",   "std_msgs/msg/Int32",   "std_msgs/msg/Int64",
                                            "std_msgs/msg/UInt16",  "std_msgs/msg/UInt64"};
     const std::string err = error_of([&] {
-      switch (b[0] % 4) {
+      switch (b[0] % 5) {
         case 0: cdr::decode_laser_scan(m, size); break;
         case 1: cdr::decode_joint_state(m, size); break;
         case 2: cdr::decode_odometry(m, size); break;
-        default: cdr::decode_number(kNumbers[(b[0] / 4) % 8], m, size); break;
+        case 3: cdr::decode_tf_message(m, size); break;
+        default: cdr::decode_number(kNumbers[(b[0] / 5) % 8], m, size); break;
       }
     });
     EXPECT_EQ(err, "(no error)") << e.path();
     ++n;
   }
-  EXPECT_GE(n, 8u);
+  EXPECT_GE(n, 10u);
 }

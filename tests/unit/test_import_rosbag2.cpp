@@ -12,6 +12,7 @@
 
 #include "pcdp/errors.hpp"
 #include "pcdp/io/import_rosbag2.hpp"
+#include "rosbag2_test_bag.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;
@@ -19,82 +20,17 @@ using namespace pcdp;
 using namespace pcdp::io;
 
 namespace {
-struct W {  // little-endian CDR
-  std::vector<std::uint8_t> b{0, 1, 0, 0};
-  void put(std::uint64_t v, std::size_t n) {
-    while ((b.size() - 4) % n) b.push_back(0);
-    for (std::size_t k = 0; k < n; ++k) b.push_back(static_cast<std::uint8_t>(v >> (8 * k)));
-  }
-  void f32(float f) {
-    std::uint32_t u;
-    std::memcpy(&u, &f, 4);
-    put(u, 4);
-  }
-  void f64(double f) {
-    std::uint64_t u;
-    std::memcpy(&u, &f, 8);
-    put(u, 8);
-  }
-  void str(const std::string& s) {
-    put(s.size() + 1, 4);
-    b.insert(b.end(), s.begin(), s.end());
-    b.push_back(0);
-  }
-  void header() {
-    put(1, 4);
-    put(0, 4);
-    str("f");
-  }
-};
-
-constexpr long long kT0 = 1'700'000'000'000'000'000LL;
-constexpr long long kMs = 1'000'000;
+using test::rosbag2::kT0;
+using test::rosbag2::kMs;
+using test::rosbag2::Msg;
+using test::rosbag2::W;
+using test::rosbag2::write_db3;
 constexpr double kPi = 3.14159265358979323846;
 
 /// The tilt joint's position (rad) at bag time t: a triangle wave +-0.3 rad, period 2 s.
 double tilt_at(long long t) {
   const double s = std::fmod(static_cast<double>(t - kT0) * 1e-9, 2.0);
   return s < 1.0 ? -0.3 + 0.6 * s : 0.3 - 0.6 * (s - 1.0);
-}
-
-struct Msg {
-  int topic;
-  long long t;
-  std::vector<std::uint8_t> data;
-};
-
-void write_db3(const std::string& path, const std::vector<std::pair<std::string, std::string>>& topics,
-               const std::vector<Msg>& msgs) {
-  sqlite3* db = nullptr;
-  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
-  const char* schema =
-      "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL, serialization_format "
-      "TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);"
-      "CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL, timestamp INTEGER NOT NULL, data "
-      "BLOB NOT NULL);";
-  ASSERT_EQ(sqlite3_exec(db, schema, nullptr, nullptr, nullptr), SQLITE_OK);
-  sqlite3_stmt* st = nullptr;
-  sqlite3_prepare_v2(db, "INSERT INTO topics VALUES (?, ?, ?, 'cdr', '')", -1, &st, nullptr);
-  for (std::size_t k = 0; k < topics.size(); ++k) {
-    sqlite3_bind_int64(st, 1, static_cast<long long>(k + 1));
-    sqlite3_bind_text(st, 2, topics[k].first.c_str(), -1, SQLITE_TRANSIENT);
-    sqlite3_bind_text(st, 3, topics[k].second.c_str(), -1, SQLITE_TRANSIENT);
-    ASSERT_EQ(sqlite3_step(st), SQLITE_DONE);
-    sqlite3_reset(st);
-  }
-  sqlite3_finalize(st);
-  sqlite3_exec(db, "BEGIN", nullptr, nullptr, nullptr);
-  sqlite3_prepare_v2(db, "INSERT INTO messages (topic_id, timestamp, data) VALUES (?, ?, ?)", -1, &st, nullptr);
-  for (const Msg& m : msgs) {
-    sqlite3_bind_int64(st, 1, m.topic);
-    sqlite3_bind_int64(st, 2, m.t);
-    sqlite3_bind_blob(st, 3, m.data.data(), static_cast<int>(m.data.size()), SQLITE_TRANSIENT);
-    ASSERT_EQ(sqlite3_step(st), SQLITE_DONE);
-    sqlite3_reset(st);
-  }
-  sqlite3_finalize(st);
-  sqlite3_exec(db, "COMMIT", nullptr, nullptr, nullptr);
-  sqlite3_close(db);
 }
 
 /// A bag of 4 s in two .db3 files: /scan (10 Hz, 100 beams), /joint_states (25 Hz, joints "wheel"
@@ -223,4 +159,134 @@ TEST(ImportRosbag2, TopicChoiceIsExplicitWhenTheBagIsAmbiguous) {
   q.odom_topic = "/odom";
   const ImportedRosbag2 r = import_rosbag2(bag + "/bag_1.db3", q);
   EXPECT_EQ(r.passes.scans, 19u);
+}
+
+namespace {
+/// |angle| between two rotations.
+double rotation_error(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) { return a.angularDistance(b); }
+
+std::string import_error(const std::string& bag, const Rosbag2ImportParams& p) {
+  try {
+    import_rosbag2(bag, p);
+  } catch (const ConfigError& e) {
+    return std::string("config: ") + e.what();
+  } catch (const InputError& e) {
+    return std::string("input: ") + e.what();
+  }
+  return "(no error)";
+}
+}  // namespace
+
+// Poses from tf: the only /tf pair chosen by itself; a chain map -> odom -> base_link (and on to
+// the laser through /tf_static) composed at the links' times.
+TEST(ImportRosbag2, TfPosesDirectAndComposedAlongTheTree) {
+  using namespace test::rosbag2;
+  TfBagOptions one;
+  one.map_odom = false;
+  const std::string bag1 = tf_bag(test::fresh_dir("one"), one);
+  const ImportedRosbag2 a = import_rosbag2(bag1, {});
+  EXPECT_EQ(a.odom_topic, "");
+  EXPECT_EQ(a.tf_frames, "odom:base_link");
+  EXPECT_EQ(a.tf_chain, "odom:base_link (/tf)");
+  EXPECT_EQ(a.passes.scans, 37u);
+  ASSERT_EQ(a.poses.size(), 81u);
+  for (std::size_t k = 0; k < a.poses.size(); ++k) {
+    const long long t = kT0 + static_cast<long long>(k) * 50 * kMs;
+    const double s = static_cast<double>(k) * 0.05;
+    const Eigen::Isometry3d T = odom_base(s);
+    EXPECT_NEAR(a.poses[k].stamp, static_cast<double>(t - a.passes.t0_ns) * 1e-9, 1e-9);
+    EXPECT_NEAR((a.poses[k].position - T.translation()).norm(), 0.0, 1e-12) << k;
+    EXPECT_LT(rotation_error(a.poses[k].orientation, Eigen::Quaterniond(T.rotation())), 1e-12) << k;
+  }
+
+  const std::string bag2 = tf_bag(test::fresh_dir("chain"));
+  Rosbag2ImportParams p;
+  p.tf_frames = "map:base_link";
+  const ImportedRosbag2 b = import_rosbag2(bag2, p);
+  EXPECT_EQ(b.tf_frames, "map:base_link");
+  EXPECT_EQ(b.tf_chain, "map:odom (/tf), odom:base_link (/tf)");
+  ASSERT_EQ(b.poses.size(), 81u);
+  for (std::size_t k = 0; k < b.poses.size(); k += 7) {
+    const double s = static_cast<double>(k) * 0.05;
+    const Eigen::Isometry3d T = map_odom(s) * odom_base(s);
+    EXPECT_NEAR((b.poses[k].position - T.translation()).norm(), 0.0, 1e-9) << k;
+    EXPECT_LT(rotation_error(b.poses[k].orientation, Eigen::Quaterniond(T.rotation())), 1e-9) << k;
+  }
+  // Down to the laser: the static link is applied on the right; a leading '/' is dropped.
+  p.tf_frames = "/map:laser";
+  const ImportedRosbag2 c = import_rosbag2(bag2, p);
+  EXPECT_EQ(c.tf_chain, "map:odom (/tf), odom:base_link (/tf), base_link:laser (/tf_static)");
+  ASSERT_EQ(c.poses.size(), 81u);
+  const Eigen::Isometry3d T = map_odom(2.0) * odom_base(2.0) * base_laser();
+  EXPECT_NEAR((c.poses[40].position - T.translation()).norm(), 0.0, 1e-9);
+  EXPECT_LT(rotation_error(c.poses[40].orientation, Eigen::Quaterniond(T.rotation())), 1e-9);
+  // A chain of static links only: its constant pose over the passes' span.
+  p.tf_frames = "base_link:laser";
+  const ImportedRosbag2 d = import_rosbag2(bag2, p);
+  ASSERT_EQ(d.poses.size(), 2u);
+  EXPECT_NEAR((d.poses[1].position - base_laser().translation()).norm(), 0.0, 1e-12);
+  EXPECT_NEAR(d.poses[0].stamp, 10.0, 0.1);  // the first scan (t0 is 10 s before it)
+}
+
+TEST(ImportRosbag2, TfFrameChoiceIsExplicitWhenAmbiguous) {
+  using namespace test::rosbag2;
+  const std::string bag = tf_bag(test::fresh_dir("two"));
+  Rosbag2ImportParams p;
+  EXPECT_EQ(import_error(bag, p),
+            "config: import rosbag2: " + bag + " has 2 transforms on /tf (map:odom, odom:base_link): choose the one "
+            "that becomes T_M_V with --tf-frames PARENT:CHILD (a chain such as map:base_link through odom is composed)");
+  p.tf_frames = "odom:base_lnk";
+  EXPECT_EQ(import_error(bag, p),
+            "config: import rosbag2: --tf-frames odom:base_lnk: no chain of transforms from odom down to base_lnk in " +
+                bag + " (followed base_lnk, and base_lnk has no parent); tf pairs: map:odom (/tf), "
+                "odom:base_link (/tf), base_link:laser (/tf_static)");
+  p.tf_frames = "base_link:map";  // upward: not composed (no inverses)
+  EXPECT_NE(import_error(bag, p).find("no chain of transforms from base_link down to map"), std::string::npos);
+  for (const char* bad : {"odom", "odom:", ":base_link", "a:b:c", "odom:odom"}) {
+    p.tf_frames = bad;
+    EXPECT_NE(import_error(bag, p).find(std::string("config: import rosbag2: --tf-frames ") + bad + ": expected"),
+              std::string::npos)
+        << bad << ": " << import_error(bag, p);
+  }
+  p.tf_frames = "odom:base_link";
+  p.odom_topic = "/odom";
+  EXPECT_EQ(import_error(bag, p),
+            "config: import rosbag2: --odom-topic /odom and --tf-frames odom:base_link: the poses come from one of them");
+
+  // Odometry and tf both present: the option decides.
+  TfBagOptions o;
+  o.map_odom = false;
+  o.odometry = true;
+  const std::string both = tf_bag(test::fresh_dir("both"), o);
+  EXPECT_EQ(import_error(both, {}),
+            "config: import rosbag2: " + both + " has poses from Odometry (/odom) and from tf (/tf: odom:base_link): "
+            "choose with --odom-topic /odom or --tf-frames PARENT:CHILD");
+  Rosbag2ImportParams q;
+  q.odom_topic = "/odom";
+  const ImportedRosbag2 r = import_rosbag2(both, q);
+  EXPECT_EQ(r.odom_topic, "/odom");
+  EXPECT_EQ(r.tf_frames, "");
+  EXPECT_EQ(r.poses[40].orientation.w(), 1.0);  // the Odometry's identity, not tf's yaw
+  q = {};
+  q.tf_frames = "odom:base_link";
+  const ImportedRosbag2 s = import_rosbag2(both, q);
+  EXPECT_EQ(s.odom_topic, "");
+  EXPECT_NEAR(s.poses[40].position.y(), 1.0, 1e-12);  // tf's y = 0.5 s, odometry's 0
+
+  // A bag without tf.
+  q.tf_frames = "odom:base_link";
+  q.tilt_topic = "/joint_states:tilt";
+  const std::string plain = make_bag(test::fresh_dir("plain"));
+  EXPECT_EQ(import_error(plain, q), "config: import rosbag2: --tf-frames odom:base_link: " + plain +
+                                        " has no topic /tf or /tf_static of type tf2_msgs/msg/TFMessage");
+}
+
+TEST(ImportRosbag2, ATruncatedTfMessageNamesTheTopicAndTheByte) {
+  using namespace test::rosbag2;
+  TfBagOptions o;
+  o.truncate = true;
+  const std::string bag = tf_bag(test::fresh_dir(), o);
+  const std::string e = import_error(bag, {});
+  EXPECT_NE(e.find("input: " + bag + "/tfbag_0.db3: topic /tf, message 10 ("), std::string::npos) << e;
+  EXPECT_NE(e.find("byte 180: truncated: transforms.transform.rotation.w needs 8 byte(s), 3 left"), std::string::npos) << e;
 }

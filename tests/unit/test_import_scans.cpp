@@ -9,10 +9,12 @@
 #include <fstream>
 #include <unordered_map>
 
+#include "pcdp/config.hpp"
 #include "pcdp/errors.hpp"
 #include "pcdp/io/import_3dtk.hpp"
 #include "pcdp/io/import_scans.hpp"
 #include "pcdp/io/pcd.hpp"
+#include "pcdp/pipeline.hpp"
 #include "pcdp/stages/register.hpp"
 #include "pcdp_test_paths.hpp"
 #include "test_support.hpp"
@@ -313,8 +315,7 @@ TEST(Import3dtk, LinesOfDifferentLengthsAskForTheCount) {
   test::write_text(dir + "/flat.pose", "0 0 0\n0 0 0\n");
   EXPECT_NE(input_error_of([&] { io::import_3dtk({dir + "/flat.3d"}, false); }).find("no two points with different bearings"),
             std::string::npos);
-#include "pcdp/config.hpp"
-#include "pcdp/pipeline.hpp"
+}
 
 TEST(ImportScans, OurCloudPcdGivesItsAmplitudesUnderEitherName) {
   // cloud.pcd has the amplitude as `amplitude` and `intensity`; versions up to 0.1.0 wrote

@@ -639,8 +639,8 @@ int cmd_import_tilt(const std::string& format, const std::vector<std::string>& i
                       (format == "rplidar" ? "folder (with scans.csv, beams.csv, servo.csv)"
                                            : "bag (a folder with metadata.yaml and .db3 files, or a .db3 file)") +
                       ", got " + std::to_string(inputs.size()) + " inputs");
-  if (format == "rplidar" && !(p.scan_topic.empty() && p.tilt_topic.empty() && p.odom_topic.empty()))
-    throw ConfigError("import rplidar: --scan-topic, --tilt-topic and --odom-topic are for rosbag2");
+  if (format == "rplidar" && !(p.scan_topic.empty() && p.tilt_topic.empty() && p.odom_topic.empty() && p.tf_frames.empty()))
+    throw ConfigError("import rplidar: --scan-topic, --tilt-topic, --odom-topic and --tf-frames are for rosbag2");
   io::StagedOutputs staged(out_dir);
   io::ImportedRosbag2 b;
   if (format == "rplidar")
@@ -652,10 +652,14 @@ int cmd_import_tilt(const std::string& format, const std::vector<std::string>& i
   if (!b.poses.empty())
     sim::write_pose_csv(b.poses, RpyOrder::kXyz, (std::filesystem::path(staged.staging_dir()) / "poses.csv").string());
   staged.commit();
-  if (format == "rosbag2")
+  if (format == "rosbag2") {
+    std::string poses = "none";
+    if (!b.odom_topic.empty()) poses = b.odom_topic + " (" + std::to_string(b.poses.size()) + ")";
+    if (!b.tf_frames.empty())
+      poses = "tf " + b.tf_frames + " (" + std::to_string(b.poses.size()) + "; " + b.tf_chain + ")";
     std::printf("topics: scans %s, tilt %s (%s, %zu readings), poses %s\n", b.scan_topic.c_str(), b.tilt_topic.c_str(),
-                b.tilt_type.c_str(), b.tilt_messages,
-                b.odom_topic.empty() ? "none" : (b.odom_topic + " (" + std::to_string(b.poses.size()) + ")").c_str());
+                b.tilt_type.c_str(), b.tilt_messages, poses.c_str());
+  }
   std::printf("imported %zu LaserScan(s) (%zu dropped: empty or outside the tilt stream), %zu returns in %zu pass(es) "
               "-> %s (pass_*.pcd; %s)\n",
               r.scans, r.dropped_scans, r.beams, r.passes.size(), out_dir.c_str(),

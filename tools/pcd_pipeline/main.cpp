@@ -166,6 +166,9 @@ int main(int argc, char** argv) {
   imp->add_option("--tilt-topic", imp_tilt.tilt_topic,
                   "rosbag2: the tilt topic, a std_msgs number or TOPIC:JOINT of a JointState (default: the only one)");
   imp->add_option("--odom-topic", imp_tilt.odom_topic, "rosbag2: nav_msgs/Odometry topic for poses.csv (default: the only one, if any)");
+  imp->add_option("--tf-frames", imp_tilt.tf_frames,
+                  "rosbag2: PARENT:CHILD (e.g. odom:base_link, map:base_link) of /tf (+ /tf_static) for poses.csv, composed "
+                  "along the tf tree; default: the only /tf pair when there is no Odometry topic (not with --odom-topic)");
   imp->add_option("--tilt-zero", imp_tilt.passes.geometry.zero, "rplidar, rosbag2: the tilt reading at level (JointState: degrees)")
       ->capture_default_str();
   imp->add_option("--tilt-sign", imp_sign, "rplidar, rosbag2: ROS pitch about y = sign * scale * (reading - zero); nod up = -pitch")
@@ -208,7 +211,7 @@ int main(int argc, char** argv) {
     if (*docs) return cli::cmd_docs();
     if (*bch) return cli::cmd_bench(bench);
     if (*imp && imp_format != "rplidar" && imp_format != "rosbag2")
-      for (const char* o : {"--scan-topic", "--tilt-topic", "--odom-topic", "--tilt-zero", "--tilt-sign", "--tilt-scale", "--axis-offset"})
+      for (const char* o : {"--scan-topic", "--tilt-topic", "--odom-topic", "--tf-frames", "--tilt-zero", "--tilt-sign", "--tilt-scale", "--axis-offset"})
         if (imp->count(o) > 0) throw ConfigError(std::string("import ") + imp_format + ": " + o + " is for rplidar and rosbag2");
     if (*imp && (imp_format == "rplidar" || imp_format == "rosbag2")) {
       imp_tilt.passes.geometry.sign = imp_sign;

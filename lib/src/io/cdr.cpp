@@ -196,6 +196,29 @@ Odometry decode_odometry(const std::uint8_t* data, std::size_t size) {
   return m;
 }
 
+TFMessage decode_tf_message(const std::uint8_t* data, std::size_t size) {
+  Reader r(data, size);
+  TFMessage m;
+  // Each transform takes at least 74 bytes: stamp 8, two strings of 5 (length and NUL), 7 float64.
+  const std::size_t n = r.count("transforms", 74);
+  m.transforms.reserve(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    TransformStamped t;
+    t.header = r.header();
+    t.child_frame_id = r.str("transforms.child_frame_id");
+    t.tx = r.f64("transforms.transform.translation.x");
+    t.ty = r.f64("transforms.transform.translation.y");
+    t.tz = r.f64("transforms.transform.translation.z");
+    t.qx = r.f64("transforms.transform.rotation.x");
+    t.qy = r.f64("transforms.transform.rotation.y");
+    t.qz = r.f64("transforms.transform.rotation.z");
+    t.qw = r.f64("transforms.transform.rotation.w");
+    m.transforms.push_back(std::move(t));
+  }
+  r.finish("tf2_msgs/msg/TFMessage");
+  return m;
+}
+
 bool is_number_type(const std::string& type) { return number_type(type) != nullptr; }
 
 double decode_number(const std::string& type, const std::uint8_t* data, std::size_t size) {

@@ -54,9 +54,23 @@ struct Odometry {
   double qx = 0, qy = 0, qz = 0, qw = 1;  ///< orientation quaternion
 };
 
+/// geometry_msgs/msg/TransformStamped: the pose of child_frame_id in header.frame_id.
+struct TransformStamped {
+  Header header;
+  std::string child_frame_id;
+  double tx = 0, ty = 0, tz = 0;          ///< transform.translation, m
+  double qx = 0, qy = 0, qz = 0, qw = 1;  ///< transform.rotation quaternion
+};
+
+/// tf2_msgs/msg/TFMessage (the type of /tf and /tf_static).
+struct TFMessage {
+  std::vector<TransformStamped> transforms;
+};
+
 LaserScan decode_laser_scan(const std::uint8_t* data, std::size_t size);
 JointState decode_joint_state(const std::uint8_t* data, std::size_t size);
 Odometry decode_odometry(const std::uint8_t* data, std::size_t size);
+TFMessage decode_tf_message(const std::uint8_t* data, std::size_t size);
 
 /// True for the std_msgs/msg number types: Float32, Float64, Int8/16/32/64, UInt8/16/32/64 (and
 /// Byte, Char): one field `data`.

@@ -12,6 +12,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <set>
 
 #include "cdr.hpp"
 #include "pcdp/errors.hpp"
@@ -25,6 +26,9 @@ constexpr double kPi = 3.14159265358979323846;
 const char* const kLaserScan = "sensor_msgs/msg/LaserScan";
 const char* const kJointState = "sensor_msgs/msg/JointState";
 const char* const kOdometry = "nav_msgs/msg/Odometry";
+const char* const kTFMessage = "tf2_msgs/msg/TFMessage";
+const char* const kTf = "/tf";
+const char* const kTfStatic = "/tf_static";
 const char* const kTables =
     "a ROS 2 sqlite3 bag has the tables topics(id, name, type, serialization_format) and "
     "messages(id, topic_id, timestamp, data)";
@@ -217,6 +221,153 @@ void for_each_message(Db& db, const std::map<long long, Topic>& topics, const st
   }
 }
 
+
+/// A pose a bag may hold: finite, with a quaternion of unit length (to 1e-3).
+bool valid_pose(const Eigen::Vector3d& pos, const Eigen::Quaterniond& q) {
+  return pos.allFinite() && q.coeffs().allFinite() && std::fabs(q.norm() - 1.0) <= 1e-3;
+}
+
+/// A tf frame name without a leading '/' (tf2 of ROS 2 refuses it; older bags have it).
+std::string frame_name(const std::string& f) { return !f.empty() && f[0] == '/' ? f.substr(1) : f; }
+
+/// One tf link: the transform of `child` in `parent` as published on `topic` (/tf or /tf_static).
+struct TfLink {
+  std::string parent, child, topic;
+  std::size_t transforms = 0;         ///< how many the bag holds
+  std::vector<PoseSample> samples;    ///< /tf: when collected, strictly increasing stamps; /tf_static: the last one
+  std::string name() const { return parent + ":" + child; }
+  std::string label() const { return name() + " (" + topic + ")"; }
+};
+using TfLinks = std::map<std::string, TfLink>;  ///< by topic + " " + PARENT:CHILD
+
+std::string tf_list(const TfLinks& links) {
+  std::string s;
+  for (const auto& [key, l] : links) s += (s.empty() ? "" : ", ") + l.label();
+  return s.empty() ? "none" : s;
+}
+
+/// Reads every TFMessage of `topic` (each strictly decoded and every transform checked) into
+/// `links`; the samples of the links in `wanted` are kept, on the time axis of `t0_ns` (/tf_static:
+/// every link's last transform).
+void read_tf(std::vector<std::unique_ptr<Db>>& dbs, const std::vector<std::map<long long, Topic>>& topics,
+             const std::string& topic, long long t0_ns, const std::set<std::string>& wanted, TfLinks& links) {
+  const bool is_static = topic == kTfStatic;
+  std::size_t index = 0;
+  for (std::size_t f = 0; f < dbs.size(); ++f)
+    for_each_message(*dbs[f], topics[f], topic, index, [&](const MsgRef& ref, const std::uint8_t* d, std::size_t n) {
+      const cdr::TFMessage m = cdr::decode_tf_message(d, n);
+      for (std::size_t k = 0; k < m.transforms.size(); ++k) {
+        const cdr::TransformStamped& t = m.transforms[k];
+        const std::string parent = frame_name(t.header.frame_id), child = frame_name(t.child_frame_id);
+        const std::string at = ref.where() + ": transforms[" + std::to_string(k) + "]";
+        if (parent.empty() || child.empty() || parent == child)
+          throw InputError(at + ": frame_id '" + t.header.frame_id + "' and child_frame_id '" + t.child_frame_id +
+                           "' must be two non-empty frame names");
+        const Eigen::Vector3d pos(t.tx, t.ty, t.tz);
+        const Eigen::Quaterniond q(t.qw, t.qx, t.qy, t.qz);
+        if (!valid_pose(pos, q))
+          throw InputError(at + " (" + parent + ":" + child +
+                           "): the translation is not finite or the rotation is not a unit quaternion");
+        TfLink& l = links[topic + " " + parent + ":" + child];
+        l.parent = parent, l.child = child, l.topic = topic;
+        ++l.transforms;
+        if (!is_static && !wanted.count(l.name())) continue;
+        PoseSample s;
+        s.stamp = is_static ? 0.0 : static_cast<double>(ref.t_ns - t0_ns) * 1e-9;
+        s.position = pos;
+        s.orientation = q.normalized();
+        if (is_static) {
+          l.samples.assign(1, s);
+        } else if (l.samples.empty() || s.stamp > l.samples.back().stamp) {  // same bag time: keep the first
+          l.samples.push_back(s);
+        }
+      }
+    });
+}
+
+/// The links from `parent` down to `child` along the tf tree (parent first).
+std::vector<const TfLink*> tf_chain(const TfLinks& links, const std::string& frames, const std::string& parent,
+                                    const std::string& child, const std::string& bag) {
+  std::map<std::string, std::vector<const TfLink*>> up;  // child frame -> its links
+  for (const auto& [key, l] : links) up[l.child].push_back(&l);
+  std::vector<const TfLink*> chain;
+  std::string cur = child, path = child;
+  const std::string pre = "import rosbag2: --tf-frames " + frames + ": ";
+  while (cur != parent) {
+    const auto it = up.find(cur);
+    if (it == up.end())
+      throw ConfigError(pre + "no chain of transforms from " + parent + " down to " + child + " in " + bag +
+                        " (followed " + path + ", and " + cur + " has no parent); tf pairs: " + tf_list(links));
+    if (it->second.size() > 1) {
+      std::string ps;
+      for (const TfLink* l : it->second) ps += (ps.empty() ? "" : ", ") + l->label();
+      throw ConfigError(pre + "frame " + cur + " has " + std::to_string(it->second.size()) + " transforms to it (" + ps +
+                        "): not a tree, the chain is ambiguous");
+    }
+    chain.push_back(it->second[0]);
+    cur = it->second[0]->parent;
+    path += " <- " + cur;
+    if (chain.size() > links.size()) throw ConfigError(pre + "the tf frames form a cycle (" + path + ")");
+  }
+  std::reverse(chain.begin(), chain.end());
+  return chain;
+}
+
+Eigen::Isometry3d isometry(const PoseSample& s) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = s.orientation.toRotationMatrix();
+  T.translation() = s.position;
+  return T;
+}
+
+/// T_PARENT_CHILD along `chain`: at the union of the /tf links' times where they all overlap,
+/// each /tf link interpolated (PoseTrack), /tf_static links constant; a chain of static links
+/// alone gives its constant pose at `first` and `last`.
+std::vector<PoseSample> compose_tf(const std::vector<const TfLink*>& chain, double first, double last,
+                                   const std::string& bag) {
+  std::vector<const TfLink*> dyn;
+  for (const TfLink* l : chain) {
+    if (l->topic == kTf) dyn.push_back(l);
+    if (l->topic == kTf && l->samples.size() < 2)
+      throw InputError(bag + ": the tf link " + l->label() + " has " + std::to_string(l->samples.size()) +
+                       " transform(s) at distinct bag times; a pose track needs at least two");
+  }
+  if (chain.size() == 1 && !dyn.empty()) return chain[0]->samples;
+  std::vector<double> times;
+  if (dyn.empty()) {
+    times = {first, last > first ? last : first + 1.0};
+  } else {
+    double lo = dyn[0]->samples.front().stamp, hi = dyn[0]->samples.back().stamp;
+    for (const TfLink* l : dyn) lo = std::max(lo, l->samples.front().stamp), hi = std::min(hi, l->samples.back().stamp);
+    if (!(lo < hi)) {
+      std::string ls;
+      for (const TfLink* l : dyn) ls += (ls.empty() ? "" : ", ") + l->label();
+      throw InputError(bag + ": the tf links " + ls + " do not overlap in time: nothing to compose");
+    }
+    for (const TfLink* l : dyn)
+      for (const PoseSample& s : l->samples)
+        if (s.stamp >= lo && s.stamp <= hi) times.push_back(s.stamp);
+    std::sort(times.begin(), times.end());
+    times.erase(std::unique(times.begin(), times.end()), times.end());
+  }
+  std::vector<PoseTrack> tracks;
+  for (const TfLink* l : chain) tracks.emplace_back(l->topic == kTf ? l->samples : std::vector<PoseSample>{});
+  std::vector<std::size_t> hints(chain.size(), 0);
+  std::vector<PoseSample> out;
+  out.reserve(times.size());
+  for (const double t : times) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    for (std::size_t k = 0; k < chain.size(); ++k)
+      T = T * (chain[k]->topic == kTf ? tracks[k].at(t, hints[k]) : isometry(chain[k]->samples.at(0)));
+    PoseSample s;
+    s.stamp = t;
+    s.position = T.translation();
+    s.orientation = Eigen::Quaterniond(T.rotation()).normalized();
+    out.push_back(s);
+  }
+  return out;
+}
+
 /// `wanted` (or the only topic of a type that `ok` accepts when wanted is empty).
 std::string pick_topic(const std::map<std::string, Topic>& all, const std::string& wanted, const char* option,
                        const std::string& kind, bool (*ok)(const std::string&), bool optional, const std::string& bag) {
@@ -273,8 +424,60 @@ ImportedRosbag2 import_rosbag2(const std::string& path, const Rosbag2ImportParam
                               [](const std::string& t) { return t == kLaserScan; }, false, path);
   out.tilt_topic = pick_topic(all, tilt_topic, "--tilt-topic", std::string("a std_msgs number or ") + kJointState,
                               [](const std::string& t) { return cdr::is_number_type(t) || t == kJointState; }, false, path);
-  out.odom_topic = pick_topic(all, p.odom_topic, "--odom-topic", kOdometry,
-                              [](const std::string& t) { return t == kOdometry; }, true, path);
+  // Poses: from odometry or from tf (the rule is in import_rosbag2.hpp).
+  if (!p.tf_frames.empty() && !p.odom_topic.empty())
+    throw ConfigError("import rosbag2: --odom-topic " + p.odom_topic + " and --tf-frames " + p.tf_frames +
+                      ": the poses come from one of them");
+  std::vector<std::string> tf_topics;
+  for (const char* t : {kTf, kTfStatic})
+    if (all.count(t) && all.at(t).type == kTFMessage) {
+      if (all.at(t).format != "cdr")
+        throw InputError(path + ": topic " + std::string(t) + " has serialization_format '" + all.at(t).format +
+                         "', only cdr is read");
+      tf_topics.push_back(t);
+    }
+  TfLinks links;
+  for (const std::string& t : tf_topics) read_tf(dbs, topics, t, 0, {}, links);
+  std::string tf_parent, tf_child;
+  if (!p.tf_frames.empty()) {
+    const auto colon = p.tf_frames.find(':');
+    if (colon == std::string::npos || p.tf_frames.find(':', colon + 1) != std::string::npos)
+      throw ConfigError("import rosbag2: --tf-frames " + p.tf_frames + ": expected PARENT:CHILD, e.g. odom:base_link");
+    tf_parent = frame_name(p.tf_frames.substr(0, colon));
+    tf_child = frame_name(p.tf_frames.substr(colon + 1));
+    if (tf_parent.empty() || tf_child.empty() || tf_parent == tf_child)
+      throw ConfigError("import rosbag2: --tf-frames " + p.tf_frames + ": expected two different frame names PARENT:CHILD");
+    if (tf_topics.empty())
+      throw ConfigError("import rosbag2: --tf-frames " + p.tf_frames + ": " + path + " has no topic " + kTf + " or " +
+                        kTfStatic + " of type " + kTFMessage);
+  } else {
+    out.odom_topic = pick_topic(all, p.odom_topic, "--odom-topic", kOdometry,
+                                [](const std::string& t) { return t == kOdometry; }, true, path);
+    std::vector<const TfLink*> dyn;
+    for (const auto& [key, l] : links)
+      if (l.topic == kTf) dyn.push_back(&l);
+    std::string dyn_list;
+    for (const TfLink* l : dyn) dyn_list += (dyn_list.empty() ? "" : ", ") + l->name();
+    if (!out.odom_topic.empty()) {
+      if (p.odom_topic.empty() && !dyn.empty())
+        throw ConfigError("import rosbag2: " + path + " has poses from Odometry (" + out.odom_topic + ") and from tf (" +
+                          kTf + ": " + dyn_list + "): choose with --odom-topic " + out.odom_topic +
+                          " or --tf-frames PARENT:CHILD");
+    } else if (dyn.size() == 1) {
+      tf_parent = dyn[0]->parent;
+      tf_child = dyn[0]->child;
+    } else if (dyn.size() > 1) {
+      throw ConfigError("import rosbag2: " + path + " has " + std::to_string(dyn.size()) + " transforms on " + kTf +
+                        " (" + dyn_list + "): choose the one that becomes T_M_V with --tf-frames PARENT:CHILD "
+                        "(a chain such as map:base_link through odom is composed)");
+    }
+  }
+  std::vector<const TfLink*> chain;
+  if (!tf_parent.empty()) {
+    out.tf_frames = tf_parent + ":" + tf_child;
+    chain = tf_chain(links, p.tf_frames.empty() ? out.tf_frames : p.tf_frames, tf_parent, tf_child, path);
+    for (const TfLink* l : chain) out.tf_chain += (out.tf_chain.empty() ? "" : ", ") + l->label();
+  }
   out.tilt_type = all.at(out.tilt_topic).type;
   if (!joint.empty() && out.tilt_type != kJointState)
     throw ConfigError("import rosbag2: --tilt-topic " + p.tilt_topic + ": a joint name is for " + kJointState +
@@ -370,7 +573,7 @@ ImportedRosbag2 import_rosbag2(const std::string& path, const Rosbag2ImportParam
         const cdr::Odometry m = cdr::decode_odometry(d, n);
         const Eigen::Vector3d pos(m.px, m.py, m.pz);
         const Eigen::Quaterniond q(m.qw, m.qx, m.qy, m.qz);
-        if (!pos.allFinite() || !q.coeffs().allFinite() || std::fabs(q.norm() - 1.0) > 1e-3)
+        if (!valid_pose(pos, q))
           throw InputError(ref.where() + ": the pose is not finite or its quaternion is not of unit length");
         PoseSample s;
         s.stamp = static_cast<double>(ref.t_ns - out.passes.t0_ns) * 1e-9;
@@ -382,6 +585,23 @@ ImportedRosbag2 import_rosbag2(const std::string& path, const Rosbag2ImportParam
     if (out.poses.size() < 2)
       throw InputError(path + ": topic " + out.odom_topic + " has " + std::to_string(out.poses.size()) +
                        " message(s); a pose track needs at least two");
+  }
+
+  // Poses from tf: the chain's /tf links collected on the passes' time axis, then composed.
+  if (!chain.empty()) {
+    std::set<std::string> wanted;
+    for (const TfLink* l : chain) wanted.insert(l->name());
+    if (std::find(tf_topics.begin(), tf_topics.end(), kTf) != tf_topics.end())
+      read_tf(dbs, topics, kTf, out.passes.t0_ns, wanted, links);
+    double first = 0, last = 0;
+    bool any = false;
+    for (const Pass& pass : out.passes.passes)
+      for (const double st : pass.stamp) {
+        first = any ? std::min(first, st) : st;
+        last = any ? std::max(last, st) : st;
+        any = true;
+      }
+    out.poses = compose_tf(chain, first, last, path);
   }
   return out;
 }

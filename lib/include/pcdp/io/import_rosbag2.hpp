@@ -1,7 +1,7 @@
 // Importer of ROS 2 bags (storage sqlite3: `*.db3` + metadata.yaml, serialization CDR) of a 2-D
 // scanner on a tilt axis, to the raw-pass contract: sensor_msgs/msg/LaserScan plus a tilt topic
-// (a std_msgs number, or one joint of a sensor_msgs/msg/JointState), optionally
-// nav_msgs/msg/Odometry as the pose file.
+// (a std_msgs number, or one joint of a sensor_msgs/msg/JointState), optionally poses from
+// nav_msgs/msg/Odometry or tf (tf2_msgs/msg/TFMessage) as the pose file.
 //
 // What it assumes:
 //  - the bag: a folder with metadata.yaml (storage_identifier sqlite3, no compression; its
@@ -18,8 +18,13 @@
 //  - beams: angle = angle_min + k * angle_increment (computed in double from the float32 fields);
 //    range 0 or a non-finite range is no return (written as 0); a scan without intensities gets
 //    amplitude 0 on every beam;
-//  - odometry (when chosen or when the bag has exactly one Odometry topic): poses.csv, T_M_V =
-//    the message's pose at its bag time, on the passes' time axis.
+//  - poses (poses.csv, T_M_V on the passes' time axis, at bag times) from nav_msgs/msg/Odometry
+//    (the message's pose) or from tf (tf2_msgs/msg/TFMessage on /tf and /tf_static): the transform
+//    PARENT:CHILD, directly or composed along the tf tree from PARENT down to CHILD (each /tf link
+//    interpolated at the times of the others, /tf_static links constant). Frame names lose a
+//    leading '/'. The choice: --odom-topic or --tf-frames when given (not both); else the only
+//    Odometry topic, or the only PARENT:CHILD pair on /tf; a bag with both (or several pairs)
+//    needs the option; with neither, no poses.
 #pragma once
 
 #include <string>
@@ -36,15 +41,20 @@ struct Rosbag2ImportParams {
   /// joint as TOPIC:JOINT (needed when the messages carry more than one joint).
   std::string tilt_topic;
   std::string odom_topic;   ///< empty: the only nav_msgs/msg/Odometry topic if there is one, else none
+  /// PARENT:CHILD, the tf transform that becomes T_M_V (e.g. odom:base_link, map:base_link);
+  /// empty: the only pair on /tf when the bag has no Odometry topic.
+  std::string tf_frames;
   RplidarImportParams passes;  ///< tilt geometry and pass splitting, shared with import rplidar
 };
 
 struct ImportedRosbag2 {
   ImportedRplidar passes;   ///< passes and counts
   std::string scan_topic, tilt_topic, odom_topic;  ///< the topics used (odom_topic empty: none)
+  std::string tf_frames;    ///< PARENT:CHILD of the poses from tf (empty: not from tf)
+  std::string tf_chain;     ///< its links, e.g. "map:odom (/tf), odom:base_link (/tf)"
   std::string tilt_type;    ///< the tilt topic's message type
   std::size_t tilt_messages = 0;
-  std::vector<PoseSample> poses;  ///< from the odometry topic; empty when there is none
+  std::vector<PoseSample> poses;  ///< from odometry or tf; empty when there is none
 };
 
 /// Reads the bag at `path` (folder or .db3). Throws InputError naming the bag file, the topic,
