@@ -86,7 +86,8 @@ std::string error_of(const std::function<void()>& f) {
   return "";
 }
 
-// ---- a 22-band grid file of 1 x 2 cells, written with the plain writer, any values ----------
+// ---- a 22-band grid file of 1 x 2 cells (the layout before elevation.state.tif, which merge still
+// reads), written with the plain writer, any values ----------
 
 struct GridSpec {
   std::vector<float> v = std::vector<float>(2 * kBands, kNan);  ///< band-major: band b, col c at 2b + c

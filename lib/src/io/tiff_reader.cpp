@@ -216,9 +216,11 @@ struct FloatTiffRows::Impl {
   }
 
   void read_geokeys(Handle& hd) {
+    hd.msgs.error.clear();
     GTIF* g = GTIFNewEx(hd.tif.get(), geotiff_error, &hd.msgs);
     if (!g) fail_lib(hd, "its GeoKey directory (tag 34735) cannot be read");
     std::unique_ptr<GTIF, void (*)(GTIF*)> guard(g, GTIFFree);
+    if (!hd.msgs.error.empty()) fail("its GeoKey directory (tag 34735) is damaged (libgeotiff: " + hd.msgs.error + ")");
     GeoKeys& k = info.geokeys;
     unsigned short v = 0;
     if (GTIFKeyGetSHORT(g, GTModelTypeGeoKey, &v, 0, 1) == 1) k.model = v;
