@@ -6,7 +6,10 @@
 #include <gdal_priv.h>
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cmath>
+#include <cstdio>
 #include <cstdint>
 #include <cstring>
 #include <fstream>
@@ -83,14 +86,28 @@ std::string bytes_of(const std::string& path) {
 }
 void write_bytes(const std::string& path, const std::string& b) { std::ofstream(path, std::ios::binary) << b; }
 
-// The InputError's message, or "" if the file was read.
+// The InputError's message, or "" if the file was read. Nothing may reach stderr meanwhile:
+// libtiff's and libgeotiff's messages go to the error, not to the terminal.
 std::string error_of(const std::string& path) {
+  std::fflush(stderr);
+  std::FILE* sink = std::tmpfile();
+  const int saved = ::dup(2);
+  ::dup2(::fileno(sink), 2);
+  std::string message;
   try {
     io::detail::read_float_tiff(path);
   } catch (const InputError& e) {
-    return e.what();
+    message = e.what();
   }
-  return "";
+  std::fflush(stderr);
+  ::dup2(saved, 2);
+  ::close(saved);
+  std::rewind(sink);
+  std::string printed;
+  for (int c; (c = std::fgetc(sink)) != EOF;) printed += static_cast<char>(c);
+  std::fclose(sink);
+  EXPECT_EQ(printed, "") << path;
+  return message;
 }
 }  // namespace
 
