@@ -10,7 +10,7 @@ PACKAGES=(
   cmake ninja-build g++ pkg-config
   libeigen3-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  libpcl-dev liboctomap-dev libpng-dev libdeflate-dev zlib1g-dev  # zlib: the GeoTIFF reader inflates a row at a time
+  libpcl-dev liboctomap-dev libpng-dev libdeflate-dev zlib1g-dev  # zlib: import carmen reads .log.gz
   libtiff-dev libgeotiff-dev libproj-dev  # elevation.tif: libtiff, its GeoKeys (libgeotiff), a WKT `crs` checked (PROJ)
   libsqlite3-dev  # import rosbag2: ROS 2 bags (sqlite3 storage)
   libssl-dev  # libcrypto: SHA-256 of report.json's inputs and outputs

@@ -95,6 +95,10 @@ const OptionSchema& top_level_schema() {
       opt_bool("allow_empty_output", false,
                "false: a run that keeps no return, or leaves more than half of its in-range returns without "
                "a pose (a time-base mismatch?), fails with exit 3 before writing; true: it writes and warns"),
+      opt_string("crs", "",
+                 "the map frame's coordinate reference system: EPSG:<code> (or its WKT) of a projected CRS in "
+                 "metres, checked against PROJ's database; written as elevation.tif's GeoKeys, kept by merge; "
+                 "empty: none"),
   };
   return s;
 }

@@ -884,7 +884,7 @@ std::string expect_same_outputs_on_one_and_two_threads(const std::vector<std::st
     EXPECT_FALSE(a.empty()) << name;
     EXPECT_TRUE(a == b) << name << " differs between 1 and 2 threads";
   }
-  EXPECT_EQ(compared, 5u);  // returns.pcd, cloud.pcd, elevation.tif, elevation.png, map.bt
+  EXPECT_EQ(compared, 6u);  // returns.pcd, cloud.pcd, elevation.tif, elevation.state.tif, elevation.png, map.bt
   return dir + "/j2";
 }
 }  // namespace
@@ -1000,7 +1000,7 @@ TEST(Cli, MergeOfDisjointPassesIsTheGridOfAllAndTheSameFileOnAnyThreads) {
   ASSERT_EQ(coarse.exit_code, 0) << coarse.err;
   const auto bad = run_cli({"merge", dir + "/a/elevation.tif", dir + "/coarse/elevation.tif", "-o", dir + "/bad.tif"});
   EXPECT_NE(bad.exit_code, 0);
-  EXPECT_NE(bad.err.find("coarse/elevation.tif: resolution 0.2 m"), std::string::npos) << bad.err;
+  EXPECT_NE(bad.err.find("coarse/elevation.state.tif: resolution 0.2 m"), std::string::npos) << bad.err;
   EXPECT_FALSE(fs::exists(dir + "/bad.tif"));
   const auto one = run_cli({"merge", dir + "/a/elevation.tif", "-o", dir + "/one.tif"});
   EXPECT_NE(one.exit_code, 0);

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -273,4 +274,45 @@ TEST(Georef, CoordinatesBeyondAStagesKeysAreAnInputErrorNamingTheStage) {
     for (const auto& w : rep["warnings"]) warned |= w.get<std::string>().find("keep 1 mm only within") != std::string::npos;
     EXPECT_TRUE(warned) << rep["warnings"];
   }
+}
+
+// The pipeline key `crs` (here through --set, as a user would): elevation.tif and the merge of two
+// such grids state EPSG:32632 to GDAL, `gdalinfo -stats` prints no error, a grid in another CRS
+// is refused by merge (exit 3, both files and both CRSs named), and an unusable CRS by the
+// configuration (exit 2, naming the key).
+TEST(Georef, CrsIsWrittenKeptByMergeAndCheckedAtConfigTime) {
+  const std::string dir = test::fresh_dir("crs");
+  const std::string scans = std::string(PCDP_SOURCE_DIR) + "/sample_scans/";
+  const std::string yaml = std::string(PCDP_SOURCE_DIR) + "/pipelines/nodding_terrain.yaml";
+  const auto run = [&](const std::string& glob, const std::string& out, const std::string& crs) {
+    return run_cli({"run", yaml, "--quiet", "--set", "input.scans=" + scans + glob, "--set",
+                    "input.poses=" + scans + "poses.csv", "--set", "crs=" + crs, "--output-dir", out});
+  };
+  ASSERT_EQ(run("pass_000.pcd", dir + "/a", "EPSG:32632").exit_code, 0);
+  ASSERT_EQ(run("pass_001.pcd", dir + "/b", "EPSG:32632").exit_code, 0);
+  ASSERT_EQ(run("pass_002.pcd", dir + "/c", "EPSG:32633").exit_code, 0);
+  EXPECT_TRUE(std::filesystem::exists(dir + "/a/elevation.state.tif"));
+  const auto m = run_cli({"merge", dir + "/a/elevation.tif", dir + "/b/elevation.tif", "-o", dir + "/m.tif"});
+  ASSERT_EQ(m.exit_code, 0) << m.err;
+  EXPECT_TRUE(std::filesystem::exists(dir + "/m.state.tif"));
+  const auto gdalinfo = [&](const std::string& args) {
+    const std::string txt = dir + "/info.txt";
+    EXPECT_EQ(std::system(("gdalinfo " + args + " > " + txt + " 2>&1").c_str()), 0);
+    return test::read_text(txt);
+  };
+  for (const std::string& f : {dir + "/a/elevation.tif", dir + "/m.tif"}) {
+    const std::string info = gdalinfo("-stats " + f);
+    EXPECT_NE(info.find("ID[\"EPSG\",32632]]"), std::string::npos) << f << "\n" << info;
+    EXPECT_EQ(info.find("ERROR"), std::string::npos) << f << "\n" << info;
+    EXPECT_EQ(info.find("Band 7"), std::string::npos) << f;  // the six user bands only
+    EXPECT_NE(info.find("Description = passes"), std::string::npos) << f;
+  }
+  const auto other = run_cli({"merge", dir + "/a/elevation.tif", dir + "/c/elevation.tif", "-o", dir + "/x.tif"});
+  EXPECT_EQ(other.exit_code, 3) << other.err;
+  EXPECT_NE(other.err.find("'" + dir + "/a/elevation.tif' is in EPSG:32632 and '" + dir + "/c/elevation.tif' in EPSG:32633"),
+            std::string::npos) << other.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/x.tif"));
+  const auto bad = run("pass_000.pcd", dir + "/d", "EPSG:4326");
+  EXPECT_EQ(bad.exit_code, 2) << bad.err;
+  EXPECT_NE(bad.err.find("--set crs=EPSG:4326: crs = EPSG:4326 (WGS 84) is a geographic CRS"), std::string::npos) << bad.err;
 }

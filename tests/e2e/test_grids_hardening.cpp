@@ -121,20 +121,22 @@ TEST(GridsHardeningCli, MergeRefusesTheSameGridTwiceAndJunkMetadata) {
   EXPECT_EQ(r.exit_code, 3) << r.err;
   EXPECT_NE(r.err.find("are the same file"), std::string::npos) << r.err;
   std::filesystem::copy_file(a, dir + "/copy.tif");
+  std::filesystem::copy_file(dir + "/a/elevation.state.tif", dir + "/copy.state.tif");  // what merge reads
   r = run_cli({"merge", a, dir + "/copy.tif", "-o", dir + "/m.tif"});
   EXPECT_EQ(r.exit_code, 3) << r.err;
   EXPECT_NE(r.err.find("hold the same bytes"), std::string::npos) << r.err;
   EXPECT_FALSE(std::filesystem::exists(dir + "/m.tif"));
   // PCDP_RESOLUTION 0.10000000000000001 -> 0.1junk followed by blanks' worth of junk: same length.
-  std::string bytes = test::read_text(a);
+  std::string bytes = test::read_text(dir + "/a/elevation.state.tif");
   const std::string from = ">0.10000000000000001<", to = ">0.1junk000000000000<";
   const std::size_t at = bytes.find(from);
   ASSERT_NE(at, std::string::npos);
   bytes.replace(at, from.size(), to);
-  test::write_text(dir + "/junk.tif", bytes);
+  test::write_text(dir + "/junk.state.tif", bytes);
+  std::filesystem::copy_file(a, dir + "/junk.tif");
   r = run_cli({"merge", a, dir + "/junk.tif", "-o", dir + "/m.tif"});
   EXPECT_EQ(r.exit_code, 3) << r.err;
-  EXPECT_NE(r.err.find(dir + "/junk.tif: GDAL metadata item PCDP_RESOLUTION = '0.1junk000000000000' is not a number"),
+  EXPECT_NE(r.err.find(dir + "/junk.state.tif: GDAL metadata item PCDP_RESOLUTION = '0.1junk000000000000' is not a number"),
             std::string::npos)
       << r.err;
 }

@@ -147,18 +147,18 @@ TEST(Elevation, MergingGridsOfDisjointPassesEqualsFusingAllPasses) {
   fa.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell&) { order_a.insert(order_a.end(), {ix, iy}); });
   fs.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell&) { order_s.insert(order_s.end(), {ix, iy}); });
   EXPECT_EQ(order_a, order_s);
-  // b re-tiled by GDAL, as a user making a cloud-optimized GeoTIFF of it would (16 x 16 tiles,
-  // several across and down): merged, the same cells and floats.
+  // b's merge state re-tiled by GDAL, as a user making a cloud-optimized GeoTIFF of b would (16 x
+  // 16 tiles, several across and down): merged, the same cells and floats.
   {
     GDALAllRegister();
-    GDALDataset* src = static_cast<GDALDataset*>(GDALOpen((dir + "/b.tif").c_str(), GA_ReadOnly));
+    GDALDataset* src = static_cast<GDALDataset*>(GDALOpen((dir + "/b.state.tif").c_str(), GA_ReadOnly));
     ASSERT_NE(src, nullptr);
     ASSERT_GT(src->GetRasterXSize(), 32);
     ASSERT_GT(src->GetRasterYSize(), 32);
     char** o = nullptr;
     for (const char* kv : {"TILED=YES", "BLOCKXSIZE=16", "BLOCKYSIZE=16", "COMPRESS=DEFLATE"}) o = CSLAddString(o, kv);
     GDALDataset* tiled = GetGDALDriverManager()->GetDriverByName("GTiff")->CreateCopy(
-        (dir + "/b_tiled.tif").c_str(), src, FALSE, o, nullptr, nullptr);
+        (dir + "/b_tiled.state.tif").c_str(), src, FALSE, o, nullptr, nullptr);
     CSLDestroy(o);
     ASSERT_NE(tiled, nullptr);
     int bx = 0, by = 0;
@@ -179,7 +179,7 @@ TEST(Elevation, MergingGridsOfDisjointPassesEqualsFusingAllPasses) {
     io::merge_elevation_geotiff(fs, dir + "/coarse.tif");
     ADD_FAILURE() << "merged a grid of another resolution";
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("coarse.tif: resolution " + format_value(2 * prm.resolution) + " m"),
+    EXPECT_NE(std::string(e.what()).find("coarse.state.tif: resolution " + format_value(2 * prm.resolution) + " m"),
               std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("grids merge only on the same grid"), std::string::npos) << e.what();
   }
@@ -213,13 +213,28 @@ TEST(Elevation, GeoTiffRoundTripAndGdalinfo) {
   ASSERT_NE(src, nullptr);
   const std::vector<std::vector<const char*>> layouts = {
       {"COMPRESS=DEFLATE", "INTERLEAVE=BAND", nullptr}, {"INTERLEAVE=PIXEL", nullptr}, {"BIGTIFF=YES", nullptr}};
+  GDALDataset* state = static_cast<GDALDataset*>(GDALOpen((dir + "/e.state.tif").c_str(), GA_ReadOnly));
+  ASSERT_NE(state, nullptr);
   for (std::size_t k = 0; k < layouts.size(); ++k) {
+    // Both files copied: the grid and its merge state (which `merge` reads).
     const std::string copy = dir + "/copy" + std::to_string(k) + ".tif";
-    GDALDataset* dst = GetGDALDriverManager()->GetDriverByName("GTiff")->CreateCopy(
-        copy.c_str(), src, FALSE, const_cast<char**>(layouts[k].data()), nullptr, nullptr);
-    ASSERT_NE(dst, nullptr);
-    GDALClose(dst);
+    for (const auto& [from, to] : {std::make_pair(src, copy), std::make_pair(state, io::elevation_state_path(copy))}) {
+      GDALDataset* dst = GetGDALDriverManager()->GetDriverByName("GTiff")->CreateCopy(
+          to.c_str(), from, FALSE, const_cast<char**>(layouts[k].data()), nullptr, nullptr);
+      ASSERT_NE(dst, nullptr);
+      GDALClose(dst);
+    }
     expect_same(g, io::read_elevation_geotiff(copy), 1e-6);
+  }
+  GDALClose(state);
+  // The grid without its merge state is refused, naming the missing file.
+  try {
+    std::filesystem::remove(dir + "/copy0.state.tif");
+    io::read_elevation_geotiff(dir + "/copy0.tif");
+    ADD_FAILURE() << "read without its merge state";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("its merge state " + dir + "/copy0.state.tif is missing"), std::string::npos)
+        << e.what();
   }
   GDALClose(src);
   // Without the PCDP_* metadata it is not one of our grids.

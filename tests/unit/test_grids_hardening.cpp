@@ -86,7 +86,8 @@ std::string error_of(const std::function<void()>& f) {
   return "";
 }
 
-// ---- a 22-band grid file of 1 x 2 cells, written with the plain writer, any values ----------
+// ---- a 22-band grid file of 1 x 2 cells (the layout before elevation.state.tif, which merge still
+// reads), written with the plain writer, any values ----------
 
 struct GridSpec {
   std::vector<float> v = std::vector<float>(2 * kBands, kNan);  ///< band-major: band b, col c at 2b + c
@@ -283,11 +284,12 @@ TEST(GridsHardening, TheReaderAllocatesAsTheDataArrives) {
         ++seen;
       });
     });
-    if (seen != 3) {
+    // libtiff's inflate meets the junk block right after the third row's data: two or three rows.
+    if (seen < 2 || seen > 3) {
       std::fprintf(stderr, "seen %d: %s\n", seen, e.c_str());
       return 1;
     }
-    if (e.find(path + ": strip 0 is not a whole DEFLATE") == std::string::npos) return 2;
+    if (e.find(path + ": strip 0 cannot be decoded") == std::string::npos) return 2;
     // The same through the strip-of-rows interface.
     io::detail::FloatTiffRows again(path);
     std::vector<std::vector<float>> out;
@@ -305,15 +307,17 @@ TEST(GridsHardening, ABlockTooSmallForItsRowsIsRefusedBeforeDecoding) {
   GridSpec s = valid_spec();
   write_grid(dir + "/ok.tif", s);
   std::string b = bytes_of(dir + "/ok.tif");
-  // ImageWidth (the first entry) claimed 2^30: every strip then holds too few bytes.
+  // ImageWidth (the first entry) claimed 2^24: every strip then holds too few bytes.
   std::uint32_t ifd = 0;
   std::memcpy(&ifd, b.data() + 4, 4);
-  const std::uint32_t wide = 1u << 30;
+  const std::uint32_t wide = 1u << 24;
   std::memcpy(&b[ifd + 2 + 8], &wide, 4);
+  const std::uint16_t long_type = 4;  // libtiff writes a small width as a SHORT
+  std::memcpy(&b[ifd + 2 + 2], &long_type, 2);
   test::write_text(dir + "/wide.tif", b);
   const std::string e = error_of([&] { io::read_elevation_geotiff(dir + "/wide.tif"); });
   EXPECT_NE(e.find("strip 0 holds"), std::string::npos) << e;
-  EXPECT_NE(e.find("too few for 1 rows of 1073741824"), std::string::npos) << e;
+  EXPECT_NE(e.find("too few for 1 rows of 16777216"), std::string::npos) << e;
 }
 
 // Item 6: every invalid cell state is refused, naming the file, the cell (row, col) and the rule.

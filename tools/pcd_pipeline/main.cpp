@@ -125,8 +125,8 @@ int main(int argc, char** argv) {
   std::vector<std::string> mg_in;
   std::string mg_out, mg_png;
   CLI::App* mrg = app.add_subcommand("merge", "merge elevation grids fused from disjoint sets of passes (exact, any order)");
-  mrg->add_option("grids", mg_in, "elevation.tif files written by fuse_elevation or merge")->required();
-  mrg->add_option("-o,--output", mg_out, "merged GeoTIFF")->required()->check(output_path);
+  mrg->add_option("grids", mg_in, "elevation.tif files written by fuse_elevation or merge (each read from its .state.tif beside it)")->required();
+  mrg->add_option("-o,--output", mg_out, "merged GeoTIFF (its merge state goes beside it, NAME.state.tif)")->required()->check(output_path);
   mrg->add_option("--png", mg_png, "also draw the merged picture")->check(output_path);
   unsigned mg_threads = 0;
   mrg->add_option("-j,--threads", mg_threads, "threads compressing the GeoTIFF (0: one per core); the file is the same whatever the count")

@@ -291,7 +291,7 @@ class GridFile {
                        " is missing (fuse_elevation and merge write it beside the grid; copy, convert or re-tile "
                        "both files)");
     if ((t.bands != kBands && t.bands != kStateBands) || !t.georeferenced)
-      throw InputError(path_ + ": not an elevation grid's merge state of pcd_pipeline (needs its " +
+      throw InputError(path_ + ": not an elevation grid of pcd_pipeline (its merge state needs its " +
                        std::to_string(kStateBands) + " bands (or the " + std::to_string(kBands) +
                        " of a grid of earlier versions), its georeferencing and PCDP_* metadata to merge)");
     crs_ = detail::crs_of(t.geokeys);

@@ -40,7 +40,15 @@ int on_error(TIFF*, void* user, const char* module, const char* fmt, va_list ap)
   }
   return 1;  // handled: nothing on stderr
 }
-int on_warning(TIFF*, void*, const char*, const char*, va_list) { return 1; }
+int on_warning(TIFF*, void* user, const char*, const char* fmt, va_list ap) {
+  auto* m = static_cast<TiffMessages*>(user);
+  if (m->warning.empty()) {
+    char buf[512];
+    std::vsnprintf(buf, sizeof buf, fmt, ap);
+    m->warning = buf;
+  }
+  return 1;
+}
 }  // namespace
 
 void TiffCloser::operator()(TIFF* t) const {

@@ -25,10 +25,10 @@ struct GeoKeys {
 
 constexpr ttag_t kTagGdalMetadata = 42112, kTagGdalNodata = 42113;
 
-/// libtiff's messages for one handle: errors kept (the first one names the rule broken),
-/// warnings dropped. Nothing is printed.
+/// libtiff's messages for one handle, the first error and the first warning (the first names
+/// the rule broken). Nothing is printed.
 struct TiffMessages {
-  std::string error;
+  std::string error, warning;
 };
 
 struct TiffCloser {

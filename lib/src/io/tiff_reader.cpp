@@ -90,6 +90,14 @@ struct FloatTiffRows::Impl {
     handles.push_back(open_handle());
     Handle& hd = *handles[0];
     TIFF* t = hd.tif.get();
+    // libtiff reads past some damage with a warning (a tag's values beyond the end of the file,
+    // a wrong count: "tag ignored"); a grid read that way would not be the grid written. Its
+    // other warnings (a nonstandard tile size, ExtraSamples missing) are about files it reads
+    // as written.
+    const std::string& warn = hd.msgs.warning;
+    if (warn.find("ignored") != std::string::npos || warn.find("IO error") != std::string::npos ||
+        warn.find("ncorrect") != std::string::npos)
+      fail("its directory is damaged (libtiff: " + warn + ")");
     std::uint32_t w32 = 0, h32 = 0;
     if (!TIFFGetField(t, TIFFTAG_IMAGEWIDTH, &w32)) fail("tag 256 (ImageWidth) is missing");
     if (!TIFFGetField(t, TIFFTAG_IMAGELENGTH, &h32)) fail("tag 257 (ImageLength) is missing");
@@ -143,9 +151,13 @@ struct FloatTiffRows::Impl {
     strips_down = (h + rps - 1) / rps;
     const std::uint64_t blocks = strips_down * across * (planar == 2 ? spp : 1);
     const std::uint64_t have = tiled ? TIFFNumberOfTiles(t) : TIFFNumberOfStrips(t);
-    if (have != blocks)
-      fail(std::string(tiled ? "the file holds " : "the file holds ") + std::to_string(have) +
-           (tiled ? " tiles" : " strips") + "; the raster has " + std::to_string(blocks));
+    const auto [offsets, counts] = offset_counts(tiled ? 324 : 273, tiled ? 325 : 279);
+    if (have != blocks || offsets != blocks || counts != blocks) {
+      const std::string tags =
+          tiled ? "tags 324 and 325 (TileOffsets, TileByteCounts)" : "tags 273 and 279 (StripOffsets, StripByteCounts)";
+      fail(tags + " hold " + std::to_string(offsets) + " and " + std::to_string(counts) + (tiled ? " tiles" : " strips") +
+           "; the raster has " + std::to_string(blocks));
+    }
     for (std::uint64_t s = 0; s < blocks; ++s) {
       int err = 0;
       const std::uint64_t off = TIFFGetStrileOffsetWithErr(t, static_cast<std::uint32_t>(s), &err);
@@ -173,10 +185,42 @@ struct FloatTiffRows::Impl {
     read_geokeys(hd);
   }
 
+  /// The value counts of two tags in the directory as stored (libtiff pads a short offsets array
+  /// with zeros, which would read as blocks not stored): the entries of the directory libtiff
+  /// read, at its offset, read here. 0: the tag is absent.
+  std::pair<std::uint64_t, std::uint64_t> offset_counts(std::uint16_t a, std::uint16_t b) {
+    TIFF* t = handles[0]->tif.get();
+    const bool big = TIFFIsBigTIFF(t) != 0, swap = TIFFIsByteSwapped(t) != 0;
+    const std::uint64_t at = TIFFCurrentDirOffset(t);
+    const int count_bytes = big ? 8 : 2, entry = big ? 20 : 12, field = big ? 8 : 4;
+    std::ifstream in(path, std::ios::binary);
+    const auto le = [&](const unsigned char* p, int n) {
+      std::uint64_t v = 0;
+      for (int i = 0; i < n; ++i) v |= std::uint64_t{p[swap ? n - 1 - i : i]} << (8 * i);
+      return v;
+    };
+    unsigned char buf[20];
+    if (at > size || size - at < static_cast<std::uint64_t>(count_bytes)) fail("its directory lies beyond the end of the file");
+    in.seekg(static_cast<std::streamoff>(at));
+    if (!in.read(reinterpret_cast<char*>(buf), count_bytes)) fail("cannot read its directory");
+    const std::uint64_t n = le(buf, count_bytes);
+    if (n > (size - at) / static_cast<std::uint64_t>(entry)) fail("its directory lies beyond the end of the file");
+    std::uint64_t ca = 0, cb = 0;
+    for (std::uint64_t k = 0; k < n; ++k) {
+      if (!in.read(reinterpret_cast<char*>(buf), entry)) fail("cannot read its directory");
+      const std::uint64_t tag = le(buf, 2);
+      if (tag == a) ca = le(buf + 4, field);
+      if (tag == b) cb = le(buf + 4, field);
+    }
+    return {ca, cb};
+  }
+
   void read_geokeys(Handle& hd) {
+    hd.msgs.error.clear();
     GTIF* g = GTIFNewEx(hd.tif.get(), geotiff_error, &hd.msgs);
     if (!g) fail_lib(hd, "its GeoKey directory (tag 34735) cannot be read");
     std::unique_ptr<GTIF, void (*)(GTIF*)> guard(g, GTIFFree);
+    if (!hd.msgs.error.empty()) fail("its GeoKey directory (tag 34735) is damaged (libgeotiff: " + hd.msgs.error + ")");
     GeoKeys& k = info.geokeys;
     unsigned short v = 0;
     if (GTIFKeyGetSHORT(g, GTModelTypeGeoKey, &v, 0, 1) == 1) k.model = v;

@@ -204,7 +204,8 @@ class FuseElevationStage final : public Stage {
 
 StageInfo fuse_elevation_stage_info() {
   return {"fuse_elevation",
-          "2.5-D elevation grid of the top surface, weighted by each point's vertical variance (elevation.tif, .png)",
+          "2.5-D elevation grid of the top surface, weighted by each point's vertical variance (elevation.tif, its merge "
+          "state elevation.state.tif, .png)",
           fuse_elevation_schema(),
           [](const StageConfig& sc, const RunContext& ctx) -> std::unique_ptr<Stage> {
             const OptionValues& o = sc.options;
