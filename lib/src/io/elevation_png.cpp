@@ -14,18 +14,12 @@
 
 #include "pcdp/errors.hpp"
 #include "pcdp/io/geotiff.hpp"
+#include "rename_into_place.hpp"
 
 namespace pcdp::io {
 
 namespace {
-void rename_into_place(const std::string& tmp, const std::string& path) {
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int e = errno;
-    std::remove(tmp.c_str());
-    errno = e;
-    throw OutputError(path + ": cannot rename into place (" + std::string(std::strerror(errno)) + ")");
-  }
-}
+using detail::rename_into_place;
 
 struct Rgb {
   double r, g, b;

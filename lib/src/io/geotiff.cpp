@@ -20,6 +20,7 @@
 #include "geotiff_crs.hpp"
 #include "tiff_reader.hpp"
 #include "tiff_writer.hpp"
+#include "rename_into_place.hpp"
 
 namespace pcdp::io {
 
@@ -81,14 +82,7 @@ std::string band_name(int b) {
   return "height_band_" + std::to_string((b - kFixed) / kPerBand) + "_" + per[(b - kFixed) % kPerBand];
 }
 
-void rename_into_place(const std::string& tmp, const std::string& path) {
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int e = errno;
-    std::remove(tmp.c_str());
-    errno = e;
-    throw OutputError(path + ": cannot rename into place (" + std::string(std::strerror(errno)) + ")");
-  }
-}
+using detail::rename_into_place;
 }  // namespace
 
 std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string& path, int deflate_level, WorkShare& share,
