@@ -250,7 +250,8 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   }
   // Every file a pipeline run may write: an earlier run's product that this run does not write
   // (map.ot after write_ot: false, say) does not stay beside the new set.
-  out.owns({"returns.pcd", "cloud.pcd", "report.json", "elevation.tif", "elevation.png", "map.bt", "map.ot"});
+  out.owns({"returns.pcd", "cloud.pcd", "report.json", "elevation.tif", "elevation.state.tif", "elevation.png", "map.bt",
+            "map.ot"});
   io::ReturnsWriter returns(out.staged_path("returns.pcd"), context_.map_origin);
   io::CloudWriter cloud(out.staged_path("cloud.pcd"), context_.map_origin);
   const std::string report_tmp = out.staged_path("report.json");
@@ -600,6 +601,7 @@ std::string report_json(const PipelineConfig& cfg, const RunSummary& sum) {
   c["input"] = {{"scans", cfg.scans}, {"poses", cfg.poses}};
   c["output_dir"] = cfg.output_dir;
   c["allow_empty_output"] = cfg.allow_empty_output;
+  c["crs"] = cfg.crs;  // "" without one
   for (const auto& [name, vals] : cfg.blocks) c[name] = values_json(vals);
   c["stages"] = nlohmann::json::array();
   for (const auto& sc : cfg.stages) {

@@ -276,16 +276,16 @@ TEST(CommitHardeningCli, UnwritableOutputsExitWith4InEverySubcommand) {
       {"run", d.yaml, "-q", "--output-dir", through},
       {"run", d.yaml, "-q", "--output-dir", file},
       {"merge", tif, tif2, "-o", through + ".tif"},
-      {"merge", tif, tif2, "-o", d.dir + "/m.tif", "--png", through},
+      {"merge", tif, tif2, "-o", d.dir + "/m.tif", "--png", through + ".png"},
       {"simulate", scene, "--output-dir", through},
       {"clean-cloud", cloud, "-o", through + ".pcd"},  // the extension names the format (.pcd, .ply, .las)
       {"clean-cloud", cloud, "-o", d.dir + "/c.pcd", "--removed", through + ".las"},
       {"amplitude-model", "--svg", through},
       {"amplitude-model", "--profile-csv", through},
-      {"error-budget", d.yaml, "--svg", through},
-      {"error-budget", d.yaml, "--csv", through},
+      {"error-budget", d.yaml, "--svg", through + ".svg"},
+      {"error-budget", d.yaml, "--csv", through + ".csv"},
       {"plan-nod", "--csv", through},
-      {"evaluate", "--truth", d.dir, "--run", d.out, "--json", through},
+      {"evaluate", "--truth", d.dir, "--run", d.out, "--json", through + ".json"},
       {"import", "rplidar", d.dir + "/none", "--output-dir", through},
   };
   for (const auto& args : cases) {

@@ -60,6 +60,11 @@ TEST(GeoTiffCrs, EpsgCodesAndWktAreCheckedAgainstProj) {
   CPLFree(wkt);
   EXPECT_NE(rule_of("EPSG:4326").find("a geographic CRS (degrees)"), std::string::npos) << rule_of("EPSG:4326");
   EXPECT_NE(rule_of("EPSG:2263").find("not metres"), std::string::npos) << rule_of("EPSG:2263");
+  // Axes pointing west and south (Hartebeesthoek94 / Lo15) or not east and north at all (a polar
+  // stereographic CRS) would lay the grid's east-north cells the wrong way round.
+  EXPECT_NE(rule_of("EPSG:2046").find("axes point west and south"), std::string::npos) << rule_of("EPSG:2046");
+  EXPECT_NE(rule_of("EPSG:3031").find("must point east and north"), std::string::npos) << rule_of("EPSG:3031");
+  EXPECT_EQ(io::normalize_crs("EPSG:25832"), "EPSG:25832");  // ETRS89 / UTM 32N: east, north
   EXPECT_NE(rule_of("EPSG:1234").find("not a CRS in PROJ's EPSG database"), std::string::npos) << rule_of("EPSG:1234");
   EXPECT_NE(rule_of("EPSG:32632x").find("a whole number in 1 .. 32766"), std::string::npos);
   EXPECT_NE(rule_of("EPSG:40000").find("a whole number in 1 .. 32766"), std::string::npos);

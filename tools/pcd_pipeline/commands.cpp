@@ -50,6 +50,28 @@ LoadOptions load_options(const RunArgs& a) {
   o.output_dir = a.output_dir;
   return o;
 }
+
+/// An output file named on the command line: its extension must be one the command writes
+/// (case-insensitive), and it must not be one of the command's inputs (the same file by path or
+/// by inode), which writing would destroy. ConfigError (exit 2) before any work.
+void check_output_file(const std::string& option, const std::string& path, const std::vector<std::string>& extensions,
+                       const std::vector<std::string>& inputs = {}) {
+  std::string low = path;
+  for (auto& c : low) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  bool ok = false;
+  std::string list;
+  for (const auto& e : extensions) {
+    ok = ok || (low.size() > e.size() && low.compare(low.size() - e.size(), e.size(), e) == 0);
+    list += (list.empty() ? "" : ", ") + e;
+  }
+  if (!ok) throw ConfigError(option + " '" + path + "': the file must end in " + list);
+  for (const auto& in : inputs) {
+    std::error_code e1, e2, e3;
+    const bool same_inode = std::filesystem::equivalent(path, in, e1) && !e1;
+    const auto a = std::filesystem::weakly_canonical(path, e2), b = std::filesystem::weakly_canonical(in, e3);
+    if (same_inode || (!e2 && !e3 && !a.empty() && a == b))
+      throw ConfigError(option + " '" + path + "' is an input of the command ('" + in + "'): it would be overwritten");
+}
 }  // namespace
 
 int cmd_validate(const RunArgs& a) {
@@ -139,6 +161,7 @@ int cmd_evaluate(const std::string& truth, const std::string& run, const std::st
     noise = {c.scanner.range_sigma, c.scanner.encoder_resolution, c.motion.position_sigma, c.motion.rpy_sigma, true};
   }
   const std::string out = json.empty() ? (std::filesystem::path(run) / "evaluation.json").string() : json;
+  check_output_file("evaluate --json", out, {".json"});
   io::StagedFiles staged;  // checked and locked before the work
   const std::string tmp = staged.add("evaluate --json", out);
   const Evaluation e = evaluate_run(truth, run, noise);
@@ -415,6 +438,8 @@ int cmd_calibrate_mount(const RunArgs& a, const std::vector<std::string>& scans)
 int cmd_error_budget(const RunArgs& a, const std::string& svg, const std::string& csv) {
   LoadOptions o;
   o.check_inputs = false;  // the budget needs the sensor, mount and pose_sigma blocks only
+  if (!svg.empty()) check_output_file("error-budget --svg", svg, {".svg"}, {a.pipeline});
+  if (!csv.empty()) check_output_file("error-budget --csv", csv, {".csv"}, {a.pipeline});
   for (const auto& s : a.sets) o.overrides.push_back(parse_override(s));
   const PipelineConfig cfg = load_pipeline(a.pipeline, o);
   const SensorParams& sn = cfg.sensor;
@@ -506,6 +531,14 @@ int cmd_merge(const std::vector<std::string>& inputs, const std::string& output,
       throw ConfigError("merge --output '" + output + "': " + (ext.empty() ? "no extension" : "extension '" + ext + "'") +
                         "; merge writes a GeoTIFF: use .tif or .tiff");
   }
+  {  // neither output may overwrite an input grid or its merge state
+    std::vector<std::string> read = inputs;
+    for (const auto& in : inputs) read.push_back(io::elevation_state_path(in));
+    check_output_file("merge --output", output, {".tif", ".tiff"}, read);
+    if (output.size() >= 10 && output.compare(output.size() - 10, 10, ".state.tif") == 0)
+      throw ConfigError("merge --output '" + output + "': a .state.tif name is the merge state beside a grid, not a grid");
+    if (!png.empty()) check_output_file("merge --png", png, {".png"}, read);
+  }
   io::check_distinct_grids(inputs);  // the same grid twice would count its passes twice
   io::StagedFiles staged;  // checked and locked before the work; the .tif and the PNG committed as a set
   const std::string tif_tmp = staged.add("merge --output", output);
@@ -549,6 +582,19 @@ int cmd_docs() {
 }
 
 namespace {
+/// An import owns the pass files and the pose file of its output folder: an earlier import's
+/// pass_*.pcd (more of them, or another format's) and poses.csv do not stay beside the new set,
+/// where a run's `pass_*.pcd` would read them as passes of this import.
+void own_import_products(io::StagedOutputs& staged, const std::string& out_dir) {
+  std::vector<std::string> names = {"poses.csv"};
+  std::error_code ec;
+  for (std::filesystem::directory_iterator it(out_dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string n = it->path().filename().string();
+    if (n.size() > 9 && n.compare(0, 5, "pass_") == 0 && n.compare(n.size() - 4, 4, ".pcd") == 0) names.push_back(n);
+  }
+  staged.owns(std::move(names));
+}
+
 /// Writes imported passes as OUT/pass_NNN.pcd (each atomically); returns the number of returns.
 std::size_t write_passes(const std::vector<Pass>& passes, const std::string& out_dir) {
   std::size_t n = 0;
@@ -589,6 +635,7 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
     opt.unit_scale = unit_scale;
     if (!nod_origin.empty() && !opt.auto_nod_origin) opt.nod_origin = xyz("--nod-origin", nod_origin);
     io::StagedOutputs staged(out_dir);  // locked and checked before the work; committed as a set
+    own_import_products(staged, out_dir);
     const io::ImportedScans r = format == "octomap" ? io::import_octomap(inputs, opt)
                                                     : io::import_cloud(inputs, have_vp ? &vp : nullptr, opt);
     const std::size_t n = write_passes(r.passes, staged.staging_dir());
@@ -623,6 +670,7 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
   if (poses != "odometry" && poses != "frames")
     throw ConfigError("import 3dtk: --poses must be odometry or frames, not '" + poses + "'");
   io::StagedOutputs staged(out_dir);
+  own_import_products(staged, out_dir);
   const io::Imported3dtk r = io::import_3dtk(inputs, poses == "frames", beams_per_line);
   const std::size_t n = write_passes(r.passes, staged.staging_dir());
   sim::write_pose_csv(r.poses, RpyOrder::kXyz, (std::filesystem::path(staged.staging_dir()) / "poses.csv").string());
@@ -642,6 +690,7 @@ int cmd_import_tilt(const std::string& format, const std::vector<std::string>& i
   if (format == "rplidar" && !(p.scan_topic.empty() && p.tilt_topic.empty() && p.odom_topic.empty() && p.tf_frames.empty()))
     throw ConfigError("import rplidar: --scan-topic, --tilt-topic, --odom-topic and --tf-frames are for rosbag2");
   io::StagedOutputs staged(out_dir);
+  own_import_products(staged, out_dir);
   io::ImportedRosbag2 b;
   if (format == "rplidar")
     b.passes = io::import_rplidar(inputs[0], p.passes);
@@ -675,6 +724,7 @@ int cmd_import_carmen(const std::vector<std::string>& inputs, const std::string&
   if (inputs.size() != 1)
     throw ConfigError("import carmen: expected one log (.log or .log.gz), got " + std::to_string(inputs.size()) + " inputs");
   io::StagedOutputs staged(out_dir);
+  own_import_products(staged, out_dir);
   const io::ImportedCarmen r = io::import_carmen(inputs[0]);
   // One pass per message: enough digits that the files sort in time order.
   const std::size_t digits = std::max<std::size_t>(3, std::to_string(r.passes.size() - 1).size());

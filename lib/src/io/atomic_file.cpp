@@ -272,8 +272,8 @@ bool legacy_temporary(const std::string& n) {
   const auto at = base.rfind(".tmp-");
   if (at == std::string::npos || at == 0 || at + 5 == base.size()) return false;
   // Only temporaries of a product name ('.notes.tmp-2024' is a user's file).
-  static const std::set<std::string> kProducts = {"returns.pcd", "cloud.pcd", "report.json", "elevation.tif",
-                                                  "elevation.png", "map.bt",    "map.ot"};
+  static const std::set<std::string> kProducts = {"returns.pcd", "cloud.pcd",           "report.json", "elevation.tif",
+                                                  "elevation.png", "elevation.state.tif", "map.bt",      "map.ot"};
   if (!kProducts.count(base.substr(1, at - 1))) return false;
   for (std::size_t i = at + 5; i < base.size(); ++i)
     if (base[i] < '0' || base[i] > '9') return false;

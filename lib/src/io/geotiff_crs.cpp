@@ -47,14 +47,24 @@ void check_projected_metres(PJ_CONTEXT* ctx, PJ* crs, const std::string& what) {
   const Pj cs(proj_crs_get_coordinate_system(ctx, crs));
   if (!cs || proj_cs_get_axis_count(ctx, cs.get()) < 2)
     throw std::invalid_argument(what + ": PROJ finds no coordinate system in it");
+  std::vector<std::string> dirs;  // the two axes' directions: east and north, in either order
   for (int i = 0; i < 2; ++i) {
     double factor = 0;
     const char* unit = nullptr;
-    if (!proj_cs_get_axis_info(ctx, cs.get(), i, nullptr, nullptr, nullptr, &factor, &unit, nullptr, nullptr) ||
+    const char* direction = nullptr;
+    if (!proj_cs_get_axis_info(ctx, cs.get(), i, nullptr, nullptr, &direction, &factor, &unit, nullptr, nullptr) ||
         std::fabs(factor - 1.0) > 1e-12)
       throw std::invalid_argument(what + ": its axes are in " + (unit ? unit : "an unknown unit") +
                                   ", not metres: elevation.tif's cells are metres on the map");
+    std::string d = direction ? direction : "unknown";
+    for (auto& c : d) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    dirs.push_back(d);
   }
+  // A CRS whose axes point west or south (some Transverse Mercator systems of southern Africa) or
+  // along meridians (polar stereographic) would put the grid's east-north cells the wrong way.
+  if (!((dirs[0] == "east" && dirs[1] == "north") || (dirs[0] == "north" && dirs[1] == "east")))
+    throw std::invalid_argument(what + ": its axes point " + dirs[0] + " and " + dirs[1] +
+                                "; elevation.tif's cells run east and north, so the CRS's axes must point east and north");
 }
 }  // namespace
 

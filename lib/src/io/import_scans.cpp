@@ -620,6 +620,16 @@ ImportedScans import_cloud(const std::vector<std::string>& files, const Eigen::V
       const double* vp = t.header.viewpoint;
       s.T.translation() = Eigen::Vector3d(vp[0], vp[1], vp[2]);
       s.T.linear() = Eigen::Quaterniond(vp[3], vp[4], vp[5], vp[6]).normalized().toRotationMatrix();
+      // A cloud of a georeferenced run (pcd_pipeline's cloud.pcd, "# map_origin X Y Z") stores its
+      // points, and its VIEWPOINT, relative to that origin: back to map coordinates, so that the
+      // passes, the poses and a --viewpoint are all in the map frame.
+      const Eigen::Vector3d origin(t.header.map_origin[0], t.header.map_origin[1], t.header.map_origin[2]);
+      if (!origin.isZero()) {
+        for (auto& p : pts) p += origin;
+        s.T.translation() += origin;
+        out.notes.push_back(f + ": map_origin " + fmt_num(origin.x()) + "," + fmt_num(origin.y()) + "," + fmt_num(origin.z()) +
+                            " added back: the points are in map coordinates");
+      }
     }
     if (viewpoint) s.T = Eigen::Translation3d(*viewpoint) * Eigen::Isometry3d::Identity();
     check_viewpoint(f, pts, s.T.translation(),

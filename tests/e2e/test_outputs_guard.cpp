@@ -1,0 +1,141 @@
+// Outputs a user's mistake must not destroy or mix up, through the CLI: an output file named
+// like an input, a re-import into a folder of an earlier import, a georeferenced cloud imported
+// again, and the run's CRS in report.json.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "pcdp/io/pcd.hpp"
+#include "pcdp/io/poses.hpp"
+#include "pcdp/sim/nodding_sim.hpp"
+#include "pcdp_test_paths.hpp"
+#include "test_support.hpp"
+
+namespace fs = std::filesystem;
+using namespace pcdp;
+using test::run_cli;
+
+namespace {
+
+struct Run {
+  sim::SimConfig cfg;
+  std::string dir, yaml;
+};
+
+/// A small simulated run folder with a pipeline that fuses an elevation grid.
+Run small_run(const std::string& tag) {
+  Run r;
+  r.cfg = test::small_sim_config();
+  r.dir = test::fresh_dir(tag);
+  const sim::SimResult s = sim::simulate(r.cfg);
+  sim::write_run(s, r.cfg, r.dir);
+  r.yaml = r.dir + "/pipeline.yaml";
+  test::write_text(r.yaml, test::pipeline_yaml(r.cfg, r.dir, r.dir + "/out") + "  - type: fuse_elevation\n");
+  return r;
+}
+
+std::vector<std::string> pass_files(const std::string& dir) {
+  std::vector<std::string> v;
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.path().filename().string().rfind("pass_", 0) == 0) v.push_back(e.path().filename().string());
+  return v;
+}
+
+}  // namespace
+
+TEST(OutputsGuard, AnOutputNamedLikeAnInputIsRefusedBeforeAnyWork) {
+  const Run r = small_run("guard");
+  ASSERT_EQ(run_cli({"run", r.yaml, "-q"}).exit_code, 0);
+  ASSERT_EQ(run_cli({"run", r.yaml, "-q", "--output-dir", r.dir + "/b"}).exit_code, 0);
+  const std::string a = r.dir + "/out/elevation.tif", b = r.dir + "/b/elevation.tif";
+  const std::string a_state = r.dir + "/out/elevation.state.tif";
+  const std::string before_a = test::read_text(a), before_state = test::read_text(a_state), yaml = test::read_text(r.yaml);
+  struct Case {
+    std::vector<std::string> args;
+    std::string says;
+  };
+  const std::vector<Case> cases = {
+      {{"merge", a, b, "-o", r.dir + "/m.tif", "--png", a}, "must end in .png"},
+      {{"merge", a, b, "-o", r.dir + "/m.tif", "--png", r.dir + "/out/elevation.png.png"}, ""},  // fine: a new name
+      {{"merge", a, b, "-o", a_state}, "merge state"},
+      {{"merge", a, b, "-o", b}, "is an input of the command"},
+      {{"error-budget", r.yaml, "--svg", r.yaml}, "must end in .svg"},
+      {{"evaluate", "--truth", r.dir, "--run", r.dir + "/out", "--json", r.dir + "/out/returns.pcd"}, "must end in .json"},
+  };
+  for (const auto& c : cases) {
+    std::string line;
+    for (const auto& s : c.args) line += s + " ";
+    const auto res = run_cli(c.args);
+    if (c.says.empty()) {
+      EXPECT_EQ(res.exit_code, 0) << line << res.err;
+      continue;
+    }
+    EXPECT_EQ(res.exit_code, 2) << line << res.err;
+    EXPECT_NE(res.err.find(c.says), std::string::npos) << line << res.err;
+  }
+  EXPECT_EQ(test::read_text(a), before_a);
+  EXPECT_EQ(test::read_text(a_state), before_state);
+  EXPECT_EQ(test::read_text(r.yaml), yaml);
+}
+
+TEST(OutputsGuard, ARunWithoutTheGridDropsAnEarlierMergeState) {
+  const Run r = small_run("state");
+  ASSERT_EQ(run_cli({"run", r.yaml, "-q"}).exit_code, 0);
+  ASSERT_TRUE(fs::exists(r.dir + "/out/elevation.state.tif"));
+  // The same run without fuse_elevation: neither the grid nor its merge state stays.
+  std::string text = test::read_text(r.yaml);
+  text = text.substr(0, text.find("  - type: fuse_elevation"));
+  test::write_text(r.yaml, text);
+  ASSERT_EQ(run_cli({"run", r.yaml, "-q"}).exit_code, 0);
+  EXPECT_FALSE(fs::exists(r.dir + "/out/elevation.tif"));
+  EXPECT_FALSE(fs::exists(r.dir + "/out/elevation.state.tif"));
+}
+
+TEST(OutputsGuard, TheCrsIsInTheReportsConfiguration) {
+  const Run r = small_run("crs");
+  ASSERT_EQ(run_cli({"run", r.yaml, "-q", "--set", "crs=EPSG:32632"}).exit_code, 0);
+  const auto j = nlohmann::json::parse(test::read_text(r.dir + "/out/report.json"));
+  EXPECT_EQ(j["config"]["crs"], "EPSG:32632");
+  // A CRS whose axes point west and south is refused at configuration time.
+  const auto bad = run_cli({"validate", r.yaml, "--set", "crs=EPSG:2046"});
+  EXPECT_EQ(bad.exit_code, 2) << bad.err;
+  EXPECT_NE(bad.err.find("west and south"), std::string::npos) << bad.err;
+}
+
+TEST(OutputsGuard, AReimportReplacesTheEarlierPassesAndPoses) {
+  const std::string dir = test::fresh_dir("reimport");
+  const std::string data = std::string(PCDP_SHARED_DIR) + "/datasets/kurt3d_3dtk_nodding";
+  if (!fs::exists(data + "/scan000.3d")) GTEST_SKIP() << "no Kurt3D data set";
+  const std::string out = dir + "/import";
+  ASSERT_EQ(run_cli({"import", "3dtk", data + "/scan000.3d", data + "/scan001.3d", data + "/scan002.3d", "--output-dir", out}).exit_code, 0);
+  ASSERT_EQ(pass_files(out).size(), 3u);
+  test::write_text(out + "/notes.txt", "mine");
+  // A smaller import into the same folder: only its own pass stays; the user's file stays too.
+  const std::string cloud = dir + "/c.pcd";
+  test::write_text(cloud, "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 3\nHEIGHT 1\n"
+                          "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n1 0 0\n2 0.1 0\n3 0.3 0.1\n");
+  const auto res = run_cli({"import", "cloud", cloud, "--output-dir", out});
+  ASSERT_EQ(res.exit_code, 0) << res.err;
+  EXPECT_EQ(pass_files(out).size(), 1u);
+  EXPECT_EQ(test::read_text(out + "/notes.txt"), "mine");
+}
+
+TEST(OutputsGuard, AGeoreferencedCloudComesBackInMapCoordinates) {
+  // A cloud with "# map_origin" (a georeferenced run's cloud.pcd): import cloud adds the origin
+  // back, so a --viewpoint in map coordinates fits it and the poses are in the map frame.
+  const std::string dir = test::fresh_dir("mapcloud");
+  const std::string cloud = dir + "/cloud.pcd";
+  test::write_text(cloud, "# .PCD v0.7\n# map_origin 500000 5300000 0\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n"
+                          "COUNT 1 1 1\nWIDTH 4\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 4\nDATA ascii\n"
+                          "10 0 0\n11 0.5 0\n12 1 0.1\n13 1.5 0.2\n");
+  const auto res = run_cli({"import", "cloud", cloud, "--viewpoint", "500000,5300000,2", "--output-dir", dir + "/import"});
+  ASSERT_EQ(res.exit_code, 0) << res.err;
+  const std::string poses = test::read_text(dir + "/import/poses.csv");
+  EXPECT_NE(poses.find("500000"), std::string::npos) << poses;
+  EXPECT_NE(poses.find("5300000"), std::string::npos) << poses;
+}
