@@ -71,6 +71,7 @@ void check_output_file(const std::string& option, const std::string& path, const
     const auto a = std::filesystem::weakly_canonical(path, e2), b = std::filesystem::weakly_canonical(in, e3);
     if (same_inode || (!e2 && !e3 && !a.empty() && a == b))
       throw ConfigError(option + " '" + path + "' is an input of the command ('" + in + "'): it would be overwritten");
+  }
 }
 }  // namespace
 
