@@ -22,14 +22,14 @@ using test::run_cli;
 
 namespace {
 
-struct Run {
+struct SimRun {
   sim::SimConfig cfg;
   std::string dir, yaml;
 };
 
 /// A small simulated run folder with a pipeline that fuses an elevation grid.
-Run small_run(const std::string& tag) {
-  Run r;
+SimRun small_run(const std::string& tag) {
+  SimRun r;
   r.cfg = test::small_sim_config();
   r.dir = test::fresh_dir(tag);
   const sim::SimResult s = sim::simulate(r.cfg);
@@ -49,7 +49,7 @@ std::vector<std::string> pass_files(const std::string& dir) {
 }  // namespace
 
 TEST(OutputsGuard, AnOutputNamedLikeAnInputIsRefusedBeforeAnyWork) {
-  const Run r = small_run("guard");
+  const SimRun r = small_run("guard");
   ASSERT_EQ(run_cli({"run", r.yaml, "-q"}).exit_code, 0);
   ASSERT_EQ(run_cli({"run", r.yaml, "-q", "--output-dir", r.dir + "/b"}).exit_code, 0);
   const std::string a = r.dir + "/out/elevation.tif", b = r.dir + "/b/elevation.tif";
@@ -84,7 +84,7 @@ TEST(OutputsGuard, AnOutputNamedLikeAnInputIsRefusedBeforeAnyWork) {
 }
 
 TEST(OutputsGuard, ARunWithoutTheGridDropsAnEarlierMergeState) {
-  const Run r = small_run("state");
+  const SimRun r = small_run("state");
   ASSERT_EQ(run_cli({"run", r.yaml, "-q"}).exit_code, 0);
   ASSERT_TRUE(fs::exists(r.dir + "/out/elevation.state.tif"));
   // The same run without fuse_elevation: neither the grid nor its merge state stays.
@@ -97,7 +97,7 @@ TEST(OutputsGuard, ARunWithoutTheGridDropsAnEarlierMergeState) {
 }
 
 TEST(OutputsGuard, TheCrsIsInTheReportsConfiguration) {
-  const Run r = small_run("crs");
+  const SimRun r = small_run("crs");
   ASSERT_EQ(run_cli({"run", r.yaml, "-q", "--set", "crs=EPSG:32632"}).exit_code, 0);
   const auto j = nlohmann::json::parse(test::read_text(r.dir + "/out/report.json"));
   EXPECT_EQ(j["config"]["crs"], "EPSG:32632");
