@@ -51,7 +51,7 @@ std::vector<std::string> pass_files(const std::string& dir) {
 TEST(OutputsGuard, AnOutputNamedLikeAnInputIsRefusedBeforeAnyWork) {
   const SimRun r = small_run("guard");
   ASSERT_EQ(run_cli({"run", r.yaml, "-q"}).exit_code, 0);
-  ASSERT_EQ(run_cli({"run", r.yaml, "-q", "--output-dir", r.dir + "/b"}).exit_code, 0);
+  ASSERT_EQ(run_cli({"run", r.yaml, "-q", "--output-dir", r.dir + "/b", "--set", "input.scans=" + r.dir + "/pass_001.pcd"}).exit_code, 0);
   const std::string a = r.dir + "/out/elevation.tif", b = r.dir + "/b/elevation.tif";
   const std::string a_state = r.dir + "/out/elevation.state.tif";
   const std::string before_a = test::read_text(a), before_state = test::read_text(a_state), yaml = test::read_text(r.yaml);
@@ -62,7 +62,8 @@ TEST(OutputsGuard, AnOutputNamedLikeAnInputIsRefusedBeforeAnyWork) {
   const std::vector<Case> cases = {
       {{"merge", a, b, "-o", r.dir + "/m.tif", "--png", a}, "must end in .png"},
       {{"merge", a, b, "-o", r.dir + "/m.tif", "--png", r.dir + "/out/elevation.png.png"}, ""},  // fine: a new name
-      {{"merge", a, b, "-o", a_state}, "merge state"},
+      {{"merge", a, b, "-o", a_state}, "is an input of the command"},
+      {{"merge", a, b, "-o", r.dir + "/new.state.tif"}, "merge state"},
       {{"merge", a, b, "-o", b}, "is an input of the command"},
       {{"error-budget", r.yaml, "--svg", r.yaml}, "must end in .svg"},
       {{"evaluate", "--truth", r.dir, "--run", r.dir + "/out", "--json", r.dir + "/out/returns.pcd"}, "must end in .json"},
