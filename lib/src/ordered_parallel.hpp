@@ -155,7 +155,6 @@ void ordered_parallel(std::size_t n, unsigned threads, std::size_t window, Produ
     }
   };
   std::vector<std::thread> pool;
-  for (unsigned t = 0; t < threads; ++t) pool.emplace_back(worker);
   const auto finish = [&] {
     {
       std::lock_guard<std::mutex> lock(m);
@@ -164,6 +163,13 @@ void ordered_parallel(std::size_t n, unsigned threads, std::size_t window, Produ
     cv.notify_all();
     for (auto& t : pool) t.join();
   };
+  try {  // a thread that cannot start (no memory): the started ones stop and join, then it throws
+    pool.reserve(threads);
+    for (unsigned t = 0; t < threads; ++t) pool.emplace_back(worker);
+  } catch (...) {
+    finish();
+    throw;
+  }
   try {
     for (std::size_t k = 0; k < n; ++k) {
       Slot s;
@@ -209,7 +215,14 @@ void parallel_for(std::size_t n, unsigned threads, Task task) {
     }
   };
   std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads && t < n; ++t) pool.emplace_back(work);
+  try {  // a thread that cannot start (no memory): the started ones finish, then it throws
+    pool.reserve(threads);
+    for (unsigned t = 1; t < threads && t < n; ++t) pool.emplace_back(work);
+  } catch (...) {
+    next.store(n);
+    for (auto& t : pool) t.join();
+    throw;
+  }
   work();
   for (auto& t : pool) t.join();
   if (error) std::rethrow_exception(error);
