@@ -32,10 +32,14 @@ test::CliResult run_cli_limited(const std::vector<std::string>& args, std::size_
     rlimit r{};
     r.rlim_cur = r.rlim_max = bytes;
     setrlimit(RLIMIT_AS, &r);
-    const test::CliResult res = run_cli(args);
-    test::write_text(dir + "/err", res.err);
-    std::fflush(nullptr);
-    _exit(res.exit_code);
+    try {
+      const test::CliResult res = run_cli(args);
+      test::write_text(dir + "/err", res.err);
+      std::fflush(nullptr);
+      _exit(res.exit_code);
+    } catch (...) {  // the test process itself ran out under the limit: the tool could not start
+      _exit(127);
+    }
   }
   int status = 0;
   waitpid(pid, &status, 0);
