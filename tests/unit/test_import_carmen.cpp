@@ -163,6 +163,7 @@ TEST(ImportCarmen, MalformedLinesNameTheFileTheLineAndTheField) {
   EXPECT_EQ(err("FLASER 0 0 0 0 0 0 0 1 host 1\n"), f + "FLASER field 2 (num_readings) '0': a laser message needs at least one reading");
   EXPECT_EQ(err("FLASER 3 1.0 -2.0 3 0 0 0 0 0 0 1.0 host 1.0\n"),
             f + "FLASER field 4 (range 2 of 3) '-2.0': must be at least 0 and fit a float");
+  EXPECT_EQ(err("FLASER 3 1.0 0x10 2.0 0 0 0 0 0 0 1.0 host 1.0\n"), f + "FLASER field 4 (range 2 of 3) '0x10': not a number");
   EXPECT_EQ(err("FLASER 3 1 2 3 0 nan 0 0 0 0 1.0 host 1.0\n"), f + "FLASER field 7 (laser y, m) 'nan': not a finite number");
   EXPECT_EQ(err("FLASER 3 1 2 3 0 0 0 0 0 0 1e999 host 1.0\n"), f + "FLASER field 12 (timestamp, s) '1e999': not a finite number");
   EXPECT_EQ(err("ROBOTLASER1 0 -1 2 0.5 8 0.01 0 2 1 2 1 5 0 0 0 0 0 0 0 0 0 0 0 1 host 1\n"),

@@ -60,7 +60,8 @@ class Fields {
     const std::string s(tok_[k]);
     char* end = nullptr;
     const double v = std::strtod(s.c_str(), &end);
-    if (s.empty() || end != s.c_str() + s.size()) fail(k, what, "not a number");
+    // Decimal only: strtod would also take hexadecimal ("0x10" = 16, "0x1p4").
+    if (s.empty() || end != s.c_str() + s.size() || s.find_first_of("xX") != std::string::npos) fail(k, what, "not a number");
     if (!std::isfinite(v)) fail(k, what, "not a finite number");
     return v;
   }
