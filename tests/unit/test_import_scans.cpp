@@ -284,6 +284,15 @@ TEST(Import3dtk, A181BeamScanImportsWithItsOwnBeamCount) {
   // The same file with a "W x H" header that agrees, then one that does not.
   write_synthetic_3d(dir + "/scan001.3d", 181, 40, "181 x 39\n", zeros, 5);
   EXPECT_EQ(io::import_3dtk({dir + "/scan001.3d"}, false).passes[0].size(), 181u * 40u);
+  // An override that the header and the geometry both contradict is refused (it divides the count).
+  try {
+    io::import_3dtk({dir + "/scan001.3d"}, false, 362);
+    ADD_FAILURE() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("--beams-per-line 362 contradicts the header (181 beams per line) and the points' geometry (181)"),
+              std::string::npos)
+        << e.what();
+  }
   write_synthetic_3d(dir + "/scan002.3d", 181, 40, "360 x 20\n", zeros, 5);
   EXPECT_NE(input_error_of([&] { io::import_3dtk({dir + "/scan002.3d"}, false); })
                 .find("scan002.3d:1: the header says 360 beams per line, the points' geometry 181; give the count with --beams-per-line N"),

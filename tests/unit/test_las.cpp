@@ -270,6 +270,12 @@ TEST(Las, WritersRoundTrip) {
   EXPECT_EQ(r.intensity[1], 65535.0f);  // clamped
   EXPECT_EQ(r.intensity[2], 12.0f);
   for (int a = 0; a < 3; ++a) EXPECT_DOUBLE_EQ(r.header.scale[a], 0.001);
+  // The header's bounds are the stored points' (404.081 rounds to 404.081 as stored, not below it).
+  for (const auto& p : r.xyz)
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_LE(r.header.min[a], p[a]) << "axis " << a;
+      EXPECT_GE(r.header.max[a], p[a]) << "axis " << a;
+    }
   io::write_ply(ply, c);
   std::vector<Eigen::Vector3d> xyz;
   std::vector<float> amp;

@@ -155,6 +155,18 @@ Imported3dtk import_3dtk(const std::vector<std::string>& scans, bool use_frames,
         throw InputError(scans[k] + ":1: the header says " + std::to_string(header_width) +
                          " beams per line, the points' geometry " + std::to_string(beams) +
                          "; give the count with --beams-per-line N");
+    } else if (header_width != 0 && header_width != beams) {
+      // An override that both the header and the geometry contradict is a mistake, not a fix.
+      std::size_t from_geometry = 0;
+      try {
+        from_geometry = beams_per_line_from_geometry(pts, scans[k]);
+      } catch (const InputError&) {
+        from_geometry = 0;  // the geometry cannot tell: the override decides
+      }
+      if (from_geometry == header_width)
+        throw ConfigError(scans[k] + ": --beams-per-line " + std::to_string(beams) + " contradicts the header (" +
+                          std::to_string(header_width) + " beams per line) and the points' geometry (" +
+                          std::to_string(from_geometry) + ")");
     }
     if (pts.size() % beams != 0)
       throw InputError(scans[k] + ": " + std::to_string(pts.size()) + " points is not a whole number of " +

@@ -335,6 +335,9 @@ void write_las(const std::string& path, const CloudOut& c) {
   std::vector<std::uint8_t> body;
   body.reserve(n * 28);
   unsigned by_return = 0;
+  // The header's bounds are those of the stored (rounded) coordinates, so that every point a
+  // reader decodes lies inside them.
+  Eigen::Vector3d qlo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), qhi = -qlo;
   for (std::size_t i = 0; i < n; ++i) {
     const auto& p = c.xyz[i];
     if (!p.allFinite()) continue;  // LAS has no "no point": non-finite points are not written
@@ -344,6 +347,8 @@ void write_las(const std::string& path, const CloudOut& c) {
         throw OutputError(path + ": point " + std::to_string(i) + " lies " + std::to_string(std::abs(p[a] - offset[a])) +
                           " from the LAS offset: at scale 0.001 a LAS coordinate reaches +-2147483.647");
       put(body, static_cast<std::int32_t>(q));
+      qlo[a] = std::min(qlo[a], q);
+      qhi[a] = std::max(qhi[a], q);
     }
     float a = i < c.intensity.size() ? c.intensity[i] : 0.0f;
     a = std::isfinite(a) ? std::clamp(a, 0.0f, 65535.0f) : 0.0f;
@@ -381,8 +386,8 @@ void write_las(const std::string& path, const CloudOut& c) {
   for (int a = 0; a < 3; ++a) put(h, scale);
   for (int a = 0; a < 3; ++a) put(h, offset[a]);
   for (int a = 0; a < 3; ++a) {
-    put(h, written ? hi[a] : 0.0);
-    put(h, written ? lo[a] : 0.0);
+    put(h, written ? qhi[a] * scale + offset[a] : 0.0);
+    put(h, written ? qlo[a] * scale + offset[a] : 0.0);
   }
   write_bytes(path, h, body);
 }
