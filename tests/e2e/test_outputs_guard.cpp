@@ -140,3 +140,16 @@ TEST(OutputsGuard, AGeoreferencedCloudComesBackInMapCoordinates) {
   EXPECT_NE(poses.find("500000"), std::string::npos) << poses;
   EXPECT_NE(poses.find("5300000"), std::string::npos) << poses;
 }
+
+TEST(OutputsGuard, AGridWithoutASurfaceIsSaid) {
+  const SimRun r = small_run("nosurface");
+  const auto res = run_cli({"run", r.yaml, "-q", "--set", "stages.fuse_elevation.min_support=1000"});
+  ASSERT_EQ(res.exit_code, 0) << res.err;
+  EXPECT_NE(res.err.find("no cell of the elevation grid has a surface"), std::string::npos) << res.err;
+  const auto j = nlohmann::json::parse(test::read_text(r.dir + "/out/report.json"));
+  EXPECT_NE(j["warnings"].dump().find("elevation.tif holds no elevation"), std::string::npos) << j["warnings"].dump();
+  // The default run has surfaces and no such warning.
+  ASSERT_EQ(run_cli({"run", r.yaml, "-q"}).exit_code, 0);
+  const auto k = nlohmann::json::parse(test::read_text(r.dir + "/out/report.json"));
+  EXPECT_EQ(k["warnings"].dump().find("holds no elevation"), std::string::npos);
+}

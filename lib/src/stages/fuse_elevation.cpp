@@ -172,6 +172,20 @@ class FuseElevationStage final : public Stage {
                                                           share, crs_, sink.staged_path("elevation.state.tif"));
     report.metrics["write_seconds"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     report.metrics["cells"] = static_cast<double>(cells);
+    // A grid without one surface is no map: say so (report.json and stderr) rather than leave an
+    // all-NaN elevation band to be found in a GIS.
+    std::size_t surfaces = 0;
+    grid_.for_each([&](std::int64_t, std::int64_t, const ElevationCell& c) {
+      double w = 0.0, wz = 0.0;
+      c.surface(params_.min_support, w, wz);
+      surfaces += w > 0.0 ? 1 : 0;
+    });
+    report.metrics["surface_cells"] = static_cast<double>(surfaces);
+    if (surfaces == 0)
+      report.warnings.push_back("no cell of the elevation grid has a surface (" + std::to_string(cells) +
+                                " cell(s) seen, none with min_support = " + std::to_string(params_.min_support) +
+                                " points in one height band" + (params_.has_extent ? ", inside 'extent'" : "") +
+                                "): elevation.tif holds no elevation");
   }
 
   /// The products' size limit (io::check_elevation_extent), checked as each pass arrives: a pose
