@@ -277,8 +277,8 @@ class GridFile {
  public:
   explicit GridFile(const std::string& path) : path_(state_file(path)), tiff_(path_) {
     const detail::FloatTiffInfo& t = tiff_.info();
-    // The merge state: elevation.state.tif beside the grid (20 bands), or a grid of the versions
-    // before 2026-11-25 that held its state itself (22 bands).
+    // The merge state: elevation.state.tif beside the grid (20 bands), or a grid of version 0.1.0
+    // that holds its state itself (22 bands).
     offset_ = t.bands == kStateBands ? kStateFirst : 0;
     if (t.bands == kUserBands && path_ == path)
       throw InputError(path + ": its merge state " + elevation_state_path(path) +

@@ -70,8 +70,8 @@ GridMetadata parse_grid_metadata(const std::string& gdal_metadata_xml, const std
 /// files of identical bytes would count the same passes twice in a merge.
 void check_distinct_grids(const std::vector<std::string>& paths);
 
-/// Reads the grid `path` from its merge state (elevation_state_path(path); a grid of the versions
-/// before 2026-11-25 holds it itself, 22 bands). Throws InputError naming the file read when it is
+/// Reads the grid `path` from its merge state (elevation_state_path(path); a grid of version 0.1.0
+/// holds it itself, 22 bands). Throws InputError naming the file read when it is
 /// missing, not a GeoTIFF of pcd_pipeline, or lacks the merge bands.
 ElevationGrid read_elevation_geotiff(const std::string& path);
 /// Merges the grid in `path` into `grid`: the same as grid.merge(read_elevation_geotiff(path)),
