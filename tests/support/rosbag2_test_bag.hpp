@@ -18,11 +18,21 @@
 
 namespace pcdp::test::rosbag2 {
 
-struct W {  // little-endian CDR
+/// A CDR writer: little (the default) or big endian, primitives aligned to their size from after
+/// the 4-byte encapsulation header, padding bytes `pad` (a reader must not check them).
+struct W {
+  bool le = true;
+  std::uint8_t pad = 0;
   std::vector<std::uint8_t> b{0, 1, 0, 0};
+  W() = default;
+  explicit W(bool little, std::uint8_t padding = 0)
+      : le(little), pad(padding), b{0x00, static_cast<std::uint8_t>(little ? 1 : 0), 0, 0} {}
+  void align(std::size_t n) {
+    while ((b.size() - 4) % n) b.push_back(pad);
+  }
   void put(std::uint64_t v, std::size_t n) {
-    while ((b.size() - 4) % n) b.push_back(0);
-    for (std::size_t k = 0; k < n; ++k) b.push_back(static_cast<std::uint8_t>(v >> (8 * k)));
+    align(n);
+    for (std::size_t k = 0; k < n; ++k) b.push_back(static_cast<std::uint8_t>(v >> (8 * (le ? k : n - 1 - k))));
   }
   void f32(float f) {
     std::uint32_t u;
@@ -39,9 +49,10 @@ struct W {  // little-endian CDR
     b.insert(b.end(), s.begin(), s.end());
     b.push_back(0);
   }
-  void header(const std::string& frame = "f") {
-    put(1, 4);
-    put(0, 4);
+  /// std_msgs/Header: stamp (sec, nanosec) and frame_id.
+  void header(const std::string& frame = "f", std::uint32_t sec = 1, std::uint32_t nanosec = 0) {
+    put(sec, 4);
+    put(nanosec, 4);
     str(frame);
   }
 };

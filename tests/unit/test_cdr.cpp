@@ -16,43 +16,17 @@
 #include "pcdp/errors.hpp"
 #include "pcdp/io/import_rplidar.hpp"
 #include "pcdp_test_paths.hpp"
+#include "rosbag2_test_bag.hpp"
 
 using namespace pcdp;
 using namespace pcdp::io;
 
 namespace {
-/// A CDR writer: little or big endian, primitives aligned to their size from after the header.
-struct W {
-  bool le;
-  std::vector<std::uint8_t> b;
-  explicit W(bool little) : le(little), b{0x00, static_cast<std::uint8_t>(little ? 1 : 0), 0, 0} {}
-  void align(std::size_t n) {
-    while ((b.size() - 4) % n) b.push_back(0xAA);  // padding bytes are not checked: not zero here
-  }
-  void put(std::uint64_t v, std::size_t n) {
-    align(n);
-    for (std::size_t k = 0; k < n; ++k) b.push_back(static_cast<std::uint8_t>(v >> (8 * (le ? k : n - 1 - k))));
-  }
-  void f32(float f) {
-    std::uint32_t u;
-    std::memcpy(&u, &f, 4);
-    put(u, 4);
-  }
-  void f64(double f) {
-    std::uint64_t u;
-    std::memcpy(&u, &f, 8);
-    put(u, 8);
-  }
-  void str(const std::string& s) {
-    put(s.size() + 1, 4);
-    b.insert(b.end(), s.begin(), s.end());
-    b.push_back(0);
-  }
-  void header(const std::string& frame) {
-    put(634, 4);
-    put(27000000, 4);
-    str(frame);
-  }
+/// The CDR writer of the tests' bags, with non-zero padding (a reader must not check it) and a
+/// header stamp of its own.
+struct W : test::rosbag2::W {
+  explicit W(bool little) : test::rosbag2::W(little, 0xAA) {}
+  void header(const std::string& frame) { test::rosbag2::W::header(frame, 634, 27000000); }
 };
 
 std::vector<std::uint8_t> laser_scan(bool le, const std::vector<float>& ranges, const std::vector<float>& intens,
