@@ -16,7 +16,7 @@
 #include <cstdio>
 #include <vector>
 
-#include "pcdp/pass.hpp"
+#include "pcdp/core/pass.hpp"
 #include "pcdp/sim/bench_scenes.hpp"
 #include "pcdp/stages/register.hpp"
 #include "pcdp/stages/reject_mixed_pixels.hpp"

@@ -15,7 +15,7 @@
 
 #include "pcdp/sim/bench_scenes.hpp"
 #include "quality.hpp"
-#include "pcdp/pass.hpp"
+#include "pcdp/core/pass.hpp"
 #include "pcdp/stages/register.hpp"
 #include "pcdp/stages/reject_occlusion.hpp"
 

@@ -7,8 +7,8 @@
 #include <chrono>
 #include <cstdio>
 
-#include "pcdp/octomap_fusion.hpp"
-#include "pcdp/pass.hpp"
+#include "pcdp/fusion/octomap_fusion.hpp"
+#include "pcdp/core/pass.hpp"
 #include "pcdp/sim/bench_scenes.hpp"
 #include "pcdp/stages/register.hpp"
 

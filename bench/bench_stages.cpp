@@ -7,9 +7,9 @@
 
 #include <chrono>
 
-#include "pcdp/elevation.hpp"
-#include "pcdp/octomap_fusion.hpp"
-#include "pcdp/pass.hpp"
+#include "pcdp/fusion/elevation.hpp"
+#include "pcdp/fusion/octomap_fusion.hpp"
+#include "pcdp/core/pass.hpp"
 #include "pcdp/sim/bench_scenes.hpp"
 #include "pcdp/stages/check_consistency.hpp"
 #include "pcdp/stages/fuse_elevation.hpp"

@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "io/tiff_writer.hpp"
-#include "pcdp/work_share.hpp"
+#include "pcdp/pipeline/work_share.hpp"
 
 namespace {
 using pcdp::WorkShare;

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "pcdp/labels.hpp"
+#include "pcdp/core/labels.hpp"
 
 namespace pcdp::bench {
 

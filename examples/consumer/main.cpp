@@ -7,7 +7,7 @@
 #include <cmath>
 #include <cstdio>
 
-#include "pcdp/pass.hpp"
+#include "pcdp/core/pass.hpp"
 #include "pcdp/pcl/filters.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
 #include "pcdp/stages/register.hpp"

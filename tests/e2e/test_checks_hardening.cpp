@@ -9,7 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "pcdp/pass.hpp"
+#include "pcdp/core/pass.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
 #include "pcdp_test_paths.hpp"
 #include "test_support.hpp"

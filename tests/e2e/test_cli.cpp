@@ -14,10 +14,10 @@
 #include <set>
 #include <tuple>
 
-#include "pcdp/elevation.hpp"
+#include "pcdp/fusion/elevation.hpp"
 #include "pcdp/io/geotiff.hpp"
-#include "pcdp/io/import_3dtk.hpp"
-#include "pcdp/labels.hpp"
+#include "pcdp/import/3dtk.hpp"
+#include "pcdp/core/labels.hpp"
 #include "pcdp/io/pcd.hpp"
 #include "pcdp_test_paths.hpp"
 #include "test_support.hpp"

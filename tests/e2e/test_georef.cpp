@@ -13,7 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "pcdp/elevation.hpp"
+#include "pcdp/fusion/elevation.hpp"
 #include "pcdp/io/geotiff.hpp"
 #include "pcdp/io/pcd.hpp"
 #include "pcdp_test_paths.hpp"

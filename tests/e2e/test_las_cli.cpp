@@ -10,9 +10,9 @@
 #include <fstream>
 #include <sstream>
 
-#include "pcdp/elevation.hpp"
+#include "pcdp/fusion/elevation.hpp"
 #include "pcdp/io/geotiff.hpp"
-#include "pcdp/io/import_scans.hpp"
+#include "pcdp/import/scans.hpp"
 #include "pcdp/io/las.hpp"
 #include "pcdp/io/pcd.hpp"
 #include "pcdp_test_paths.hpp"

@@ -14,7 +14,7 @@
 #include <set>
 
 #include "pcdp/io/pcd.hpp"
-#include "pcdp/labels.hpp"
+#include "pcdp/core/labels.hpp"
 #include "pcdp_test_paths.hpp"
 #include "test_support.hpp"
 
@@ -129,7 +129,7 @@ TEST(Report, ListsEveryOutputAndInputWithItsSizeAndSha256) {
   EXPECT_GE(t, before);
   EXPECT_LE(t, after);
 
-  // label_codes: the code table of pcdp/labels.hpp, in code order.
+  // label_codes: the code table of pcdp/core/labels.hpp, in code order.
   ASSERT_EQ(rep["label_codes"].size(), kLabelCount);
   for (std::size_t c = 0; c < kLabelCount; ++c) {
     const auto& e = rep["label_codes"][c];

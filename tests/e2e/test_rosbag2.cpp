@@ -11,7 +11,7 @@
 #include <filesystem>
 #include <string>
 
-#include "pcdp/pass.hpp"
+#include "pcdp/core/pass.hpp"
 #include "pcdp_test_paths.hpp"
 #include "test_support.hpp"
 

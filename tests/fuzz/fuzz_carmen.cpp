@@ -1,6 +1,6 @@
 #include "fuzz_common.hpp"
-#include "pcdp/errors.hpp"
-#include "pcdp/io/import_carmen.hpp"
+#include "pcdp/core/errors.hpp"
+#include "pcdp/import/carmen.hpp"
 
 // A CARMEN log, plain or gzip (zlib reads both): a malformed one must be an InputError, never a
 // crash, an overflow or an unbounded allocation; an accepted one gives consistent passes.

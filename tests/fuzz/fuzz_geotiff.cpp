@@ -1,7 +1,7 @@
 #include <stdexcept>
 
 #include "fuzz_common.hpp"
-#include "pcdp/errors.hpp"
+#include "pcdp/core/errors.hpp"
 #include "pcdp/io/geotiff.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {

@@ -2,7 +2,7 @@
 // PCDP_MIN_SUPPORT), parsed strictly: anything malformed is an InputError, nothing else.
 #include <string>
 
-#include "pcdp/errors.hpp"
+#include "pcdp/core/errors.hpp"
 #include "pcdp/io/geotiff.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {

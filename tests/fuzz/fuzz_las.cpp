@@ -1,7 +1,7 @@
 #include <stdexcept>
 
 #include "fuzz_common.hpp"
-#include "pcdp/errors.hpp"
+#include "pcdp/core/errors.hpp"
 #include "pcdp/io/las.hpp"
 
 // The LAS reader: header, VLRs (GeoKeys, WKT), counts against the file size, the points.

@@ -1,8 +1,8 @@
 #include <stdexcept>
 
 #include "fuzz_common.hpp"
-#include "pcdp/errors.hpp"
-#include "pcdp/pass.hpp"
+#include "pcdp/core/errors.hpp"
+#include "pcdp/core/pass.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string path = fuzz_file(data, size, ".pcd");

@@ -1,8 +1,8 @@
 #include <string>
 
-#include "pcdp/config.hpp"
-#include "pcdp/errors.hpp"
-#include "pcdp/pipeline.hpp"
+#include "pcdp/pipeline/config.hpp"
+#include "pcdp/core/errors.hpp"
+#include "pcdp/pipeline/pipeline.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string text(reinterpret_cast<const char*>(data), size);

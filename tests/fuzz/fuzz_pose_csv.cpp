@@ -1,6 +1,6 @@
 #include "fuzz_common.hpp"
-#include "pcdp/errors.hpp"
-#include "pcdp/georef.hpp"
+#include "pcdp/core/errors.hpp"
+#include "pcdp/core/georef.hpp"
 #include "pcdp/io/poses.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {

@@ -5,7 +5,7 @@
 #include <string>
 
 #include "io/cdr.hpp"
-#include "pcdp/errors.hpp"
+#include "pcdp/core/errors.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   if (size < 1) return 0;

@@ -112,7 +112,7 @@ inline std::vector<std::uint8_t> laser_scan() {
 }
 
 /// A rotation from roll, pitch, yaw in the project's pose-file order xyz: Rx(roll) Ry(pitch) Rz(yaw)
-/// (built here with Eigen's angle-axis, independently of pcdp/transforms.hpp).
+/// (built here with Eigen's angle-axis, independently of pcdp/core/transforms.hpp).
 inline Eigen::Quaterniond xyz_quaternion(double roll, double pitch, double yaw) {
   return Eigen::Quaterniond(Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()) *
                             Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *

@@ -9,8 +9,8 @@
 #include <fstream>
 #include <sstream>
 
-#include "pcdp/errors.hpp"
-#include "pcdp/pass.hpp"
+#include "pcdp/core/errors.hpp"
+#include "pcdp/core/pass.hpp"
 #include "pcdp/stages/register.hpp"
 #include "pcdp_test_paths.hpp"
 

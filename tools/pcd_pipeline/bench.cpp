@@ -20,14 +20,14 @@
 #include <iostream>
 #include <sstream>
 
-#include "pcdp/config.hpp"
-#include "pcdp/errors.hpp"
-#include "pcdp/georef.hpp"
+#include "pcdp/pipeline/config.hpp"
+#include "pcdp/core/errors.hpp"
+#include "pcdp/core/georef.hpp"
 #include "pcdp/io/pcd.hpp"
 #include "pcdp/io/poses.hpp"
-#include "pcdp/octomap_fusion.hpp"
-#include "pcdp/pass.hpp"
-#include "pcdp/pipeline.hpp"
+#include "pcdp/fusion/octomap_fusion.hpp"
+#include "pcdp/core/pass.hpp"
+#include "pcdp/pipeline/pipeline.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
 #include "pcdp/stages/register.hpp"
 
@@ -117,7 +117,7 @@ struct Registered {
 };
 
 Registered register_all(const PipelineConfig& c, const fs::path& returns_pcd) {
-  // Relative to the run's map origin, as the pipeline registers (pcdp/georef.hpp).
+  // Relative to the run's map origin, as the pipeline registers (pcdp/core/georef.hpp).
   const PoseTrack read = io::read_pose_csv(c.poses, c.rpy_order);
   const PoseTrack poses = shift_poses(read, choose_map_origin(read));
   const Eigen::Isometry3d T_V_N = make_transform(c.mount.translation, c.mount.rpy, c.rpy_order);

@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "pcdp/io/import_rosbag2.hpp"
+#include "pcdp/import/rosbag2.hpp"
 
 namespace pcdp {
 struct NodPlanParams;

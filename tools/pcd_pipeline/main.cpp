@@ -7,10 +7,10 @@
 
 #include "bench.hpp"
 #include "commands.hpp"
-#include "pcdp/errors.hpp"
+#include "pcdp/core/errors.hpp"
 #include "pcdp/io/atomic_file.hpp"
-#include "pcdp/nod_plan.hpp"
-#include "pcdp/occlusion_model.hpp"
+#include "pcdp/models/nod_plan.hpp"
+#include "pcdp/models/occlusion_model.hpp"
 
 namespace {
 constexpr const char* kOutOfMemory =

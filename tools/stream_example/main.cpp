@@ -1,4 +1,4 @@
-// How a live mapping stack uses the line streaming API (pcdp/stream.hpp), replaying recorded
+// How a live mapping stack uses the line streaming API (pcdp/pipeline/stream.hpp), replaying recorded
 // passes as if they arrived from the scanner: poses are handed over as they come, each scan line
 // is pushed when its encoder reading is taken, and finished lines come back registered and
 // labelled, ready for the stack's own map. Prints the added latency per line.
@@ -11,9 +11,9 @@
 #include <exception>
 #include <vector>
 
-#include "pcdp/config.hpp"
-#include "pcdp/pass.hpp"
-#include "pcdp/stream.hpp"
+#include "pcdp/pipeline/config.hpp"
+#include "pcdp/core/pass.hpp"
+#include "pcdp/pipeline/stream.hpp"
 
 int main(int argc, char** argv) {
   if (argc != 2 && argc != 3) {

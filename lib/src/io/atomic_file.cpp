@@ -18,7 +18,7 @@
 #include <iostream>
 #include <set>
 
-#include "pcdp/errors.hpp"
+#include "pcdp/core/errors.hpp"
 
 namespace fs = std::filesystem;
 

@@ -2,7 +2,7 @@
 
 #include <cstring>
 
-#include "pcdp/errors.hpp"
+#include "pcdp/core/errors.hpp"
 
 namespace pcdp::io::cdr {
 

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "pcdp/errors.hpp"
+#include "pcdp/core/errors.hpp"
 #include "pcdp/io/geotiff.hpp"
 #include "rename_into_place.hpp"
 

@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "pcdp/elevation.hpp"
+#include "pcdp/fusion/elevation.hpp"
 
 namespace pcdp::io {
 

@@ -14,9 +14,9 @@
 #include <string>
 #include <vector>
 
-#include "pcdp/errors.hpp"
+#include "pcdp/core/errors.hpp"
 #include "pcdp/io/input_file.hpp"
-#include "pcdp/options.hpp"
+#include "pcdp/pipeline/options.hpp"
 #include "geotiff_crs.hpp"
 #include "tiff_reader.hpp"
 #include "tiff_writer.hpp"

@@ -10,7 +10,7 @@
 #include <limits>
 #include <memory>
 
-#include "pcdp/errors.hpp"
+#include "pcdp/core/errors.hpp"
 #include "pcdp/io/input_file.hpp"
 
 namespace pcdp::io {

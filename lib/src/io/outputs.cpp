@@ -5,8 +5,8 @@
 #include <limits>
 #include <set>
 
-#include "pcdp/errors.hpp"
-#include "pcdp/pass.hpp"
+#include "pcdp/core/errors.hpp"
+#include "pcdp/core/pass.hpp"
 
 namespace pcdp::io {
 
@@ -54,7 +54,7 @@ std::vector<PcdField> output_extra_fields(const std::vector<PcdField>& extra) {
 }
 
 // x y z: the pass's coordinates, already relative to the map origin (the pipeline registers
-// relative to it, pcdp/georef.hpp), so float32 keeps 1 mm; the header states the origin.
+// relative to it, pcdp/core/georef.hpp), so float32 keeps 1 mm; the header states the origin.
 std::uint8_t* put_common(std::uint8_t* d, const Pass& p, std::size_t i) {
   d = put(d, static_cast<float>(p.x[i]));
   d = put(d, static_cast<float>(p.y[i]));

@@ -11,7 +11,7 @@
 #include <map>
 #include <sstream>
 
-#include "pcdp/errors.hpp"
+#include "pcdp/core/errors.hpp"
 #include "pcdp/io/input_file.hpp"
 
 namespace pcdp::io {

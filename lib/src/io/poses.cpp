@@ -8,7 +8,7 @@
 #include <sstream>
 #include <vector>
 
-#include "pcdp/errors.hpp"
+#include "pcdp/core/errors.hpp"
 #include "pcdp/io/input_file.hpp"
 
 namespace pcdp::io {

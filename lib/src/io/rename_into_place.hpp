@@ -6,7 +6,7 @@
 #include <cstring>
 #include <string>
 
-#include "pcdp/errors.hpp"
+#include "pcdp/core/errors.hpp"
 
 namespace pcdp::io::detail {
 

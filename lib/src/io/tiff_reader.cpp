@@ -15,7 +15,7 @@
 #include <memory>
 #include <stdexcept>
 
-#include "pcdp/errors.hpp"
+#include "pcdp/core/errors.hpp"
 #include "pcdp/io/input_file.hpp"
 #include "tiff_format.hpp"
 #include "xml_escape.hpp"

@@ -14,7 +14,7 @@
 #include <geotiff/geotiff.h>
 #include <geotiff/geovalues.h>
 
-#include "pcdp/errors.hpp"
+#include "pcdp/core/errors.hpp"
 #include "tiff_format.hpp"
 #include "xml_escape.hpp"
 

@@ -13,7 +13,7 @@
 #include <utility>
 #include <vector>
 
-#include "pcdp/work_share.hpp"
+#include "pcdp/pipeline/work_share.hpp"
 #include "tiff_format.hpp"
 
 namespace pcdp::io::detail {

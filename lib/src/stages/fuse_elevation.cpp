@@ -10,10 +10,10 @@
 #include <utility>
 #include <vector>
 
-#include "pcdp/errors.hpp"
-#include "pcdp/georef.hpp"
+#include "pcdp/core/errors.hpp"
+#include "pcdp/core/georef.hpp"
 #include "pcdp/io/geotiff.hpp"
-#include "pcdp/pass.hpp"
+#include "pcdp/core/pass.hpp"
 
 namespace pcdp {
 

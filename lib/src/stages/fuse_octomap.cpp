@@ -6,10 +6,10 @@
 #include <cstring>
 #include <fstream>
 
-#include "pcdp/errors.hpp"
-#include "pcdp/georef.hpp"
-#include "pcdp/octomap_fusion.hpp"
-#include "pcdp/pass.hpp"
+#include "pcdp/core/errors.hpp"
+#include "pcdp/core/georef.hpp"
+#include "pcdp/fusion/octomap_fusion.hpp"
+#include "pcdp/core/pass.hpp"
 
 namespace pcdp {
 

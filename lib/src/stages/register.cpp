@@ -5,10 +5,10 @@
 #include <limits>
 #include <memory>
 
-#include "pcdp/pass.hpp"
-#include "pcdp/skew.hpp"
-#include "pcdp/uncertainty.hpp"
-#include "../small_angle.hpp"
+#include "pcdp/core/pass.hpp"
+#include "pcdp/core/skew.hpp"
+#include "pcdp/core/uncertainty.hpp"
+#include "core/small_angle.hpp"
 
 namespace pcdp {
 
@@ -390,7 +390,7 @@ class RegisterStage final : public Stage {
   }
   bool concurrent() const override { return true; }
   int stream_reach() const override { return 1; }  // the previous line's encoder reading
-  // The run's poses are relative to its map origin (Pipeline::prepare, pcdp/georef.hpp): every
+  // The run's poses are relative to its map origin (Pipeline::prepare, pcdp/core/georef.hpp): every
   // coordinate placed here is too, computed in double, whatever the pose file's magnitude.
   void process(Pass& pass, StageReport& report) override {
     register_pass(pass, params_, ctx_.config->sensor, T_V_N_, ctx_.poses.get(), ctx_.config->pose_sigma,

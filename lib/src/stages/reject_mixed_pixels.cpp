@@ -4,8 +4,8 @@
 #include <cmath>
 #include <map>
 
-#include "pcdp/errors.hpp"
-#include "pcdp/pass.hpp"
+#include "pcdp/core/errors.hpp"
+#include "pcdp/core/pass.hpp"
 
 namespace pcdp {
 

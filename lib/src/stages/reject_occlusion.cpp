@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
-#include "pcdp/errors.hpp"
-#include "pcdp/occlusion_model.hpp"
-#include "pcdp/pass.hpp"
+#include "pcdp/core/errors.hpp"
+#include "pcdp/models/occlusion_model.hpp"
+#include "pcdp/core/pass.hpp"
 
 namespace pcdp {
 

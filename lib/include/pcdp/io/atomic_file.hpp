@@ -24,7 +24,7 @@
 #include <string>
 #include <vector>
 
-#include "pcdp/stage.hpp"
+#include "pcdp/pipeline/stage.hpp"
 
 namespace pcdp::io {
 

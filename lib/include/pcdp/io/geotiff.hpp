@@ -21,8 +21,8 @@
 #include <string>
 #include <vector>
 
-#include "pcdp/elevation.hpp"
-#include "pcdp/work_share.hpp"
+#include "pcdp/fusion/elevation.hpp"
+#include "pcdp/pipeline/work_share.hpp"
 
 namespace pcdp::io {
 

@@ -74,7 +74,7 @@ class PcdWriter {
   std::size_t point_bytes() const { return point_bytes_; }
   /// Appends `n` points from a row-major buffer of n * point_bytes() bytes.
   void append(const std::uint8_t* rows, std::size_t n);
-  /// The map origin the points' x y z are relative to (pcdp/georef.hpp), written as the header
+  /// The map origin the points' x y z are relative to (pcdp/core/georef.hpp), written as the header
   /// comment "# map_origin X Y Z" when not 0 (PCL and other readers skip comment lines).
   void set_map_origin(double x, double y, double z) {
     map_origin_[0] = x;

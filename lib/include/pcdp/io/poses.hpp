@@ -4,7 +4,7 @@
 
 #include <string>
 
-#include "pcdp/transforms.hpp"
+#include "pcdp/core/transforms.hpp"
 
 namespace pcdp::io {
 

@@ -8,7 +8,7 @@
 // Header-only templates over pcl::FilterIndices<PointT>; the algorithms live in the pcdp library
 // (which has no PCL in its interface). Link pcdp::pcl (find_package(pcd_pipeline COMPONENTS pcl)).
 //
-// Input: a cloud as the scanner saw it, with the scanner at sensor_origin_ (pcdp/cloud_pass.hpp
+// Input: a cloud as the scanner saw it, with the scanner at sensor_origin_ (pcdp/core/cloud_pass.hpp
 // says what is assumed). Organized clouds (height > 1: one scan line per row) give neighbours along
 // and across lines; MixedPixelRemoval also takes unorganized clouds (neighbours by angle,
 // setAngularResolution). A point field `intensity`, if PointT has one, is the amplitude; without
@@ -25,9 +25,9 @@
 #include <utility>
 #include <vector>
 
-#include "pcdp/cloud_pass.hpp"
-#include "pcdp/config.hpp"
-#include "pcdp/labels.hpp"
+#include "pcdp/core/cloud_pass.hpp"
+#include "pcdp/pipeline/config.hpp"
+#include "pcdp/core/labels.hpp"
 #include "pcdp/stages/reject_mixed_pixels.hpp"
 #include "pcdp/stages/reject_occlusion.hpp"
 

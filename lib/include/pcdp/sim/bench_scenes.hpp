@@ -5,7 +5,7 @@
 #include <random>
 #include <string>
 
-#include "pcdp/config.hpp"
+#include "pcdp/pipeline/config.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
 
 namespace pcdp::bench {

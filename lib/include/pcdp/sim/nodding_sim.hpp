@@ -31,8 +31,8 @@
 #include <string>
 #include <vector>
 
-#include "pcdp/pass.hpp"
-#include "pcdp/transforms.hpp"
+#include "pcdp/core/pass.hpp"
+#include "pcdp/core/transforms.hpp"
 
 namespace pcdp::sim {
 

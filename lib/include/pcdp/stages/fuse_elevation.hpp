@@ -6,8 +6,8 @@
 
 #include <string>
 
-#include "pcdp/elevation.hpp"
-#include "pcdp/stage.hpp"
+#include "pcdp/fusion/elevation.hpp"
+#include "pcdp/pipeline/stage.hpp"
 
 namespace pcdp {
 

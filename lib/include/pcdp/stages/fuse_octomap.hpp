@@ -2,7 +2,7 @@
 // sensor origin per return, rejected returns not inserted); writes map.bt (and map.ot on request).
 #pragma once
 
-#include "pcdp/stage.hpp"
+#include "pcdp/pipeline/stage.hpp"
 
 namespace pcdp {
 

@@ -16,10 +16,10 @@
 #include <string>
 #include <vector>
 
-#include "pcdp/config.hpp"
-#include "pcdp/options.hpp"
-#include "pcdp/stage.hpp"
-#include "pcdp/transforms.hpp"
+#include "pcdp/pipeline/config.hpp"
+#include "pcdp/pipeline/options.hpp"
+#include "pcdp/pipeline/stage.hpp"
+#include "pcdp/core/transforms.hpp"
 
 namespace pcdp {
 

@@ -53,8 +53,8 @@
 #include <Eigen/Geometry>
 #include <vector>
 
-#include "pcdp/config.hpp"
-#include "pcdp/stage.hpp"
+#include "pcdp/pipeline/config.hpp"
+#include "pcdp/pipeline/stage.hpp"
 
 namespace pcdp {
 

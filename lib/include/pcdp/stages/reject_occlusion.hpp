@@ -21,8 +21,8 @@
 // edge model uses only stable neighbours, whose amplitudes stand for P1 and P2.
 #pragma once
 
-#include "pcdp/config.hpp"
-#include "pcdp/stage.hpp"
+#include "pcdp/pipeline/config.hpp"
+#include "pcdp/pipeline/stage.hpp"
 
 namespace pcdp {
 

@@ -1,0 +1,67 @@
+// One nodding pass: the raw returns of one PCD file (docs/data_contract.md "Input 1"), ordered by line and
+// beam, plus what the stages derive (labels, calibrated ranges, map points, sensor origins).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "pcdp/io/pcd.hpp"
+#include "pcdp/core/labels.hpp"
+
+namespace pcdp {
+
+/// A field of the input that the contract does not name; carried through to returns.pcd.
+struct ExtraField {
+  io::PcdField field;
+  std::vector<std::uint8_t> data;  ///< points * field.bytes(), in pass order
+};
+
+/// Pass::flags bits.
+inline constexpr std::uint8_t kFlagRepaired = 1;  ///< range replaced by its prediction (reject_occlusion repair)
+
+struct Pass {
+  std::size_t index = 0;  ///< position of the pass file in the run's ordered list
+  std::string source;     ///< file path
+  bool organized = false; ///< the file was organized (WIDTH = returns per line)
+
+  // Raw columns (docs/data_contract.md), sorted by (line, beam).
+  std::vector<std::uint32_t> line, beam;
+  std::vector<float> range, bearing, amplitude, nod;
+  std::vector<double> stamp;
+  std::vector<ExtraField> extra;
+
+  /// Returns of line k are [line_begin[k], line_begin[k+1]).
+  std::vector<std::size_t> line_begin;
+
+  // Derived by stages.
+  std::vector<Label> label;        ///< kKept until a stage says otherwise
+  std::vector<std::uint8_t> flags; ///< bit flags, see kFlag* (written to returns.pcd)
+  std::vector<float> range_cal;    ///< calibrated range, m (NaN where there is no return)
+  std::vector<float> nod_at_return;///< nod angle at the return's own stamp (skew-corrected)
+  std::vector<double> x, y, z;     ///< map frame, NaN where there is no point
+  std::vector<double> ox, oy, oz;  ///< sensor (nod-axis) origin in the map frame at the return
+  /// Covariance of (x, y, z), 6 per return: xx, xy, xz, yy, yz, zz (m^2); empty when not computed.
+  std::vector<float> cov;
+
+  std::size_t size() const { return range.size(); }
+  std::size_t line_count() const { return line_begin.empty() ? 0 : line_begin.size() - 1; }
+  std::size_t kept() const;
+  bool is_kept(std::size_t i) const { return label[i] == Label::kKept; }
+};
+
+/// Builds a pass from a PCD table, checking the data contract: required fields and their types,
+/// finite values, non-negative ranges, one nod reading per line, stamps increasing along each
+/// line and from line to line, unique (line, beam). Throws InputError naming the file, the field
+/// and the line/beam of the first offence.
+Pass pass_from_table(io::PcdTable&& table, const std::string& source, std::size_t index);
+
+/// The cheap part of read_pass, for checking every pass before the heavy work: the file is a
+/// regular, readable file, its header parses, has the required fields with their types, and
+/// (binary) the data it claims fits in the file. Reads the header only. Throws InputError.
+void check_pass_header(const std::string& path);
+
+/// read_pcd + pass_from_table.
+Pass read_pass(const std::string& path, std::size_t index);
+
+}  // namespace pcdp

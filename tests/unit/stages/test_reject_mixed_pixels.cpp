@@ -1,0 +1,485 @@
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "pcdp/pipeline/config.hpp"
+#include "pcdp/core/pass.hpp"
+#include "pcdp/sim/bench_scenes.hpp"
+#include "pcdp/stages/register.hpp"
+#include "pcdp/stages/reject_mixed_pixels.hpp"
+#include "pcdp/stages/reject_occlusion.hpp"
+#include "pcdp_test_paths.hpp"
+#include "test_support.hpp"
+
+using namespace pcdp;
+
+namespace {
+SensorParams coaxial_sensor() {
+  SensorParams s;
+  s.transceiver_separation = 0.0;
+  return s;
+}
+
+/// An organized pass: one line per row of ranges (bearing 0.01 rad apart), lines 0.01 rad apart
+/// in nod, amplitude 100 everywhere.
+Pass grid_pass(const std::vector<std::vector<float>>& rows) {
+  Pass p;
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    p.line_begin.push_back(p.range.size());
+    for (std::size_t b = 0; b < rows[k].size(); ++b) {
+      p.line.push_back(static_cast<std::uint32_t>(k));
+      p.beam.push_back(static_cast<std::uint32_t>(b));
+      p.range.push_back(rows[k][b]);
+      p.bearing.push_back(0.01f * static_cast<float>(b));
+      p.amplitude.push_back(100.0f);
+      p.nod.push_back(0.01f * static_cast<float>(k));
+      p.stamp.push_back(1e-2 * static_cast<double>(k) + 1e-4 * static_cast<double>(b));
+    }
+  }
+  p.line_begin.push_back(p.range.size());
+  p.label.assign(p.range.size(), Label::kKept);
+  p.flags.assign(p.range.size(), 0);
+  register_pass(p, RegisterParams{}, SensorParams{}, Eigen::Isometry3d::Identity(), nullptr);
+  return p;
+}
+
+/// Rows of a wall at 10 m, 21 beams wide, with one return in front of it at beam 10 per line.
+std::vector<std::vector<float>> spike_in_wall(const std::vector<float>& spike) {
+  std::vector<std::vector<float>> rows;
+  for (float c : spike) {
+    std::vector<float> row(21, 10.0f);
+    row[10] = c;
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+/// Which lines' return at beam 10 the stage flags (coaxial sensor).
+std::vector<bool> flagged_at_beam_10(Pass p, const MixedPixelParams& mp) {
+  reject_mixed_pixels(p, mp, coaxial_sensor());
+  std::vector<bool> f;
+  for (std::size_t k = 0; k < p.line_count(); ++k) f.push_back(p.label[p.line_begin[k] + 10] == Label::kMixedPixel);
+  return f;
+}
+}  // namespace
+
+TEST(RejectMixedPixels, AVeilBetweenTwoSurfacesIsFlaggedAndTheSurfacesAreNot) {
+  std::vector<float> r(10, 5.0f), a(10, 100.0f);
+  r.push_back(7.5f);  // half and half: f = 0.5 with P1 = 100, P2 = 100 -> amplitude 100
+  a.push_back(100.0f);
+  for (int i = 0; i < 10; ++i) {
+    r.push_back(10.0f);
+    a.push_back(100.0f);
+  }
+  Pass p = test::line_pass(r, a);
+  EXPECT_EQ(reject_mixed_pixels(p, MixedPixelParams{}, coaxial_sensor()), 1u);
+  EXPECT_EQ(p.label[10], Label::kMixedPixel);
+  // Only the return itself, never a window of neighbours.
+  EXPECT_EQ(p.label[9], Label::kKept);
+  EXPECT_EQ(p.label[11], Label::kKept);
+}
+
+TEST(RejectMixedPixels, AMuchBrighterReturnBetweenTheSurfacesIsARealObject) {
+  std::vector<float> r(10, 5.0f), a(10, 40.0f);
+  r.push_back(7.5f);
+  a.push_back(250.0f);  // the mixture of 40 and 40 cannot be this bright
+  for (int i = 0; i < 10; ++i) {
+    r.push_back(10.0f);
+    a.push_back(40.0f);
+  }
+  Pass p = test::line_pass(r, a);
+  EXPECT_EQ(reject_mixed_pixels(p, MixedPixelParams{}, coaxial_sensor()), 0u);
+}
+
+TEST(RejectMixedPixels, AThinPostAndASmoothSlopeAreKept) {
+  std::vector<float> r(21, 10.0f), a(21, 60.0f);
+  r[10] = 5.0f;  // a post one return wide
+  Pass p = test::line_pass(r, a);
+  EXPECT_EQ(reject_mixed_pixels(p, MixedPixelParams{}, coaxial_sensor()), 0u);
+  std::vector<float> slope;
+  for (int i = 0; i < 30; ++i) slope.push_back(6.0f + 0.4f * static_cast<float>(i) + 0.01f * static_cast<float>(i * i));
+  Pass q = test::line_pass(slope, std::vector<float>(30, 60.0f));
+  EXPECT_EQ(reject_mixed_pixels(q, MixedPixelParams{}, coaxial_sensor()), 0u);
+}
+
+TEST(RejectMixedPixels, BesideAVoidAReturnThatBreaksFromItsOneSurfaceIsAMixture) {
+  // Ground at grazing incidence (1 m below the sensor): ranges grow hyperbolically. Before it, a
+  // void (a surface too dark to return on its own); next to the void, the return whose footprint
+  // straddled the two.
+  const auto ground = [](int k) { return static_cast<float>(1.0 / std::sin(0.2 - 0.008 * k)); };
+  const auto scan = [&](float first, int voids) {
+    std::vector<float> r(static_cast<std::size_t>(voids), 0.0f);  // 0: no return
+    r.push_back(first);
+    for (int k = 1; k <= 12; ++k) r.push_back(ground(k));
+    Pass p = test::line_pass(r, std::vector<float>(r.size(), 100.0f));
+    reject_mixed_pixels(p, MixedPixelParams{}, coaxial_sensor());
+    return p.label[static_cast<std::size_t>(voids)];
+  };
+  // 0.4 m short of the ground's quadratic trend (its step there is 0.2 m): a mixture.
+  EXPECT_EQ(scan(ground(0) - 0.4f, 5), Label::kMixedPixel);
+  // On the trend: the first ground return after the void is valid.
+  EXPECT_EQ(scan(ground(0), 5), Label::kKept);
+  // The same return at the start of the scan line: the end of the field of view is not a void.
+  EXPECT_EQ(scan(ground(0) - 0.4f, 0), Label::kKept);
+  // Beside a void with ground beyond it, a return that continues that ground is valid.
+  std::vector<float> r;
+  for (int k = -8; k <= -3; ++k) r.push_back(ground(k));
+  r.push_back(0.0f);
+  r.push_back(0.0f);
+  r.push_back(ground(0) - 0.1f);  // off the right-hand trend, on the left-hand one across the void
+  for (int k = 1; k <= 12; ++k) r.push_back(ground(k) - 0.1f);
+  Pass p = test::line_pass(r, std::vector<float>(r.size(), 100.0f));
+  reject_mixed_pixels(p, MixedPixelParams{}, coaxial_sensor());
+  EXPECT_EQ(p.label[8], Label::kKept);
+}
+
+TEST(RejectMixedPixels, AtACornerTheVeilIsFlaggedAndAFaceSeenEdgeOnIsNot) {
+  // Along each line: a wall at 10 m, the return at the corner, one return on a box's side face
+  // seen edge-on (9.2 m) and then the box's front (8.6 m). The side's next step is itself an edge,
+  // so that side's rate says nothing; the other direction decides.
+  const auto lines = [](const std::vector<float>& corner) {
+    std::vector<std::vector<float>> rows;
+    for (float c : corner) {
+      std::vector<float> row(10, 10.0f);
+      row.push_back(c);
+      row.push_back(9.2f);
+      for (int b = 0; b < 9; ++b) row.push_back(8.6f);
+      rows.push_back(row);
+    }
+    return rows;
+  };
+  // A veil: its range changes from line to line with the split of the footprint.
+  Pass veil = grid_pass(lines({9.30f, 9.39f, 9.48f, 9.57f, 9.66f}));
+  reject_mixed_pixels(veil, MixedPixelParams{}, coaxial_sensor());
+  std::size_t flagged = 0;
+  for (std::size_t k = 0; k < veil.line_count(); ++k) {
+    flagged += veil.label[veil.line_begin[k] + 10] == Label::kMixedPixel;
+    EXPECT_EQ(veil.label[veil.line_begin[k] + 11], Label::kKept) << "the side face, line " << k;
+  }
+  // The first and last lines have one neighbour across only, and keep its range within an edge
+  // jump (0.09 m from line to line): from one neighbour, that is what a face seen edge-on does too.
+  // Kept.
+  EXPECT_EQ(flagged, 3u);
+  // A veil whose range changes faster: the first and last lines do not keep their one neighbour's
+  // range, so they are not flat across, and are flagged too.
+  Pass fast = grid_pass(lines({9.30f, 9.50f, 9.70f, 9.50f, 9.30f}));
+  reject_mixed_pixels(fast, MixedPixelParams{}, coaxial_sensor());
+  for (std::size_t k = 0; k < fast.line_count(); ++k) {
+    EXPECT_EQ(fast.label[fast.line_begin[k] + 10], Label::kMixedPixel) << "line " << k;
+    EXPECT_EQ(fast.label[fast.line_begin[k] + 11], Label::kKept) << "the side face, line " << k;
+  }
+  // A second face seen edge-on keeps its range from line to line: a surface, not a veil.
+  Pass face = grid_pass(lines(std::vector<float>(5, 9.6f)));
+  EXPECT_EQ(reject_mixed_pixels(face, MixedPixelParams{}, coaxial_sensor()), 0u);
+}
+
+TEST(RejectMixedPixels, AOneBeamSpikeWhoseRangeChangesAcrossLinesIsAMixtureWithAThinObject) {
+  // A wall at 10 m; at beam 10, something one return wide in front of it in every line. Both
+  // along-line neighbours are the wall, so along the line a thin post and a mixture of a post
+  // with the wall look alike; across lines they do not.
+  const auto flagged = [](Pass p, bool spikes) {
+    MixedPixelParams mp;
+    mp.spikes = spikes;
+    return flagged_at_beam_10(p, mp);
+  };
+  // A mixture: the range follows the share of the footprint on the thin object, which changes
+  // from line to line. Every line is flagged, the first and last too (one neighbour across is
+  // enough: the return is on neither); nothing else is.
+  const Pass mixture = grid_pass(spike_in_wall({8.0f, 8.6f, 9.2f, 8.3f, 7.7f, 8.9f}));
+  EXPECT_EQ(flagged(mixture, true), std::vector<bool>(6, true));
+  Pass all = mixture;
+  EXPECT_EQ(reject_mixed_pixels(all, MixedPixelParams{}, coaxial_sensor()), 6u);
+  // Without it, the across-line edge tests find some of them, not the first and last lines.
+  const std::vector<bool> without = flagged(mixture, false);
+  EXPECT_LT(std::count(without.begin(), without.end(), true), 6);
+  EXPECT_FALSE(without.front());
+  EXPECT_FALSE(without.back());
+  // A thin post keeps its range from line to line; its top return has the post below it.
+  EXPECT_EQ(flagged(grid_pass(spike_in_wall({6.0f, 6.0f, 6.01f, 6.0f, 6.0f, 6.0f})), true), std::vector<bool>(6, false));
+  EXPECT_EQ(flagged(grid_pass(spike_in_wall({6.0f, 6.0f, 6.0f, 10.0f, 10.0f, 10.0f})), true), std::vector<bool>(6, false));
+}
+
+TEST(RejectMixedPixels, ASpikeUpToSpikeWidthReturnsWideIsTestedLikeAOneBeamSpike) {
+  // A wall at 10 m; from beam 10, a run of `width` returns in front of it in every line: a post
+  // one to three beams wide, or the post with the mixtures on its sides. Each return of the run
+  // has its own range, varying from line to line (a mixture) or not (the post itself).
+  const auto pass = [](std::size_t width, const std::vector<float>& front, float step) {
+    std::vector<std::vector<float>> rows;
+    for (float c : front) {
+      std::vector<float> row(24, 10.0f);
+      for (std::size_t q = 0; q < width; ++q) row[10 + q] = c + step * static_cast<float>(q);
+      rows.push_back(row);
+    }
+    return grid_pass(rows);
+  };
+  // Which returns of the run the stage flags, in the first and last line (where the across-line
+  // edge tests have one side only, so only the spike test can find them) and in all lines.
+  struct Count {
+    std::size_t ends = 0, all = 0, outside = 0;
+  };
+  const auto flagged = [](Pass p, std::size_t width, int spike_width) {
+    MixedPixelParams mp;
+    mp.spike_width = spike_width;
+    reject_mixed_pixels(p, mp, coaxial_sensor());
+    Count c;
+    for (std::size_t k = 0; k < p.line_count(); ++k)
+      for (std::size_t b = 0; b < p.line_begin[k + 1] - p.line_begin[k]; ++b) {
+        const bool f = p.label[p.line_begin[k] + b] == Label::kMixedPixel;
+        if (b < 10 || b >= 10 + width) {
+          c.outside += f;
+          continue;
+        }
+        c.all += f;
+        c.ends += f && (k == 0 || k + 1 == p.line_count());
+      }
+    return c;
+  };
+  const std::vector<float> mixture{8.0f, 8.6f, 9.2f, 8.3f, 7.7f, 8.9f};
+  for (std::size_t width = 1; width <= 4; ++width) {
+    // Mixtures: every return of a run up to spike_width (3) wide, the end lines too; nothing beside it.
+    const Count wide = flagged(pass(width, mixture, 0.02f), width, 3);
+    EXPECT_EQ(wide.outside, 0u) << "width " << width;
+    if (width <= 3) {
+      EXPECT_EQ(wide.all, 6 * width) << "width " << width;
+    } else {  // a run wider than spike_width: the end lines are not flagged
+      EXPECT_EQ(wide.ends, 0u) << "width " << width;
+    }
+    // With spike_width 1 only one-beam runs are spikes.
+    EXPECT_EQ(flagged(pass(width, mixture, 0.02f), width, 1).ends, width == 1 ? 2u : 0u) << "width " << width;
+    // A post keeps its range from line to line: nothing flagged, whatever its width.
+    EXPECT_EQ(flagged(pass(width, std::vector<float>(6, 6.0f), 0.0f), width, 3).all, 0u) << "width " << width;
+  }
+  // The run must stand in front of both flanks by an edge jump: a step down to a nearer surface
+  // (the wall goes on at 6 m after the run) is not a spike.
+  std::vector<std::vector<float>> rows;
+  for (float c : mixture) {
+    std::vector<float> row(24, 10.0f);
+    for (std::size_t b = 10; b < 24; ++b) row[b] = b < 12 ? c : 6.0f;
+    rows.push_back(row);
+  }
+  EXPECT_EQ(flagged(grid_pass(rows), 0, 3).outside - flagged(grid_pass(rows), 0, 1).outside, 0u);
+}
+
+TEST(RejectMixedPixels, ASpikeThatKeepsItsRangeAcrossLinesIsAMixtureWhereItsAmplitudeSaysSo) {
+  // A dim wall (amplitude 30) at 10 m; at beam 10 a bright post (amplitude 180) at 8 m in lines 3-5
+  // and, in lines 0-2, mixtures of post and wall as at the top of a post while the nod turns: their
+  // ranges differ by 2 cm from line to line (within the tolerance, so the range test across lines
+  // cannot tell them from the post), but their amplitudes follow the mixing model. With a share f
+  // of the footprint on the post, r = (180 f 8 + 30 (1 - f) 10) / A and A = 180 f + 30 (1 - f):
+  // f = 0.723, 0.76, 0.8 give r = 8.12, 8.10, 8.08 m and A = 138.5, 144, 150.
+  const std::vector<float> range{8.12f, 8.10f, 8.08f, 8.0f, 8.0f, 8.0f};
+  const auto flagged = [&](const std::vector<float>& spike_amp, float wall_amp, double dim_ratio) {
+    Pass p = grid_pass(spike_in_wall(range));
+    for (std::size_t k = 0; k < p.line_count(); ++k)
+      for (std::size_t b = 0; b < 21; ++b) p.amplitude[p.line_begin[k] + b] = b == 10 ? spike_amp[k] : wall_amp;
+    MixedPixelParams mp;
+    mp.spike_dim_ratio = dim_ratio;
+    return flagged_at_beam_10(p, mp);
+  };
+  const std::vector<float> mixed_amp{138.5f, 144.0f, 150.0f, 180.0f, 180.0f, 180.0f};
+  const std::vector<bool> mixtures{true, true, true, false, false, false};
+  EXPECT_EQ(flagged(mixed_amp, 30.0f, 0.9), mixtures);
+  // Off (spike_dim_ratio 0), nothing: each return keeps the range of a neighbour across lines.
+  EXPECT_EQ(flagged(mixed_amp, 30.0f, 0.0), std::vector<bool>(6, false));
+  // As bright as the post: the same object, 8-12 cm deeper (a round post's flank), not a mixture.
+  EXPECT_EQ(flagged(std::vector<float>(6, 180.0f), 30.0f, 0.9), std::vector<bool>(6, false));
+  // Within spike_dim_ratio of the post (165 > 0.9 x 180 = 162): kept.
+  EXPECT_EQ(flagged({165.0f, 165.0f, 165.0f, 180.0f, 180.0f, 180.0f}, 30.0f, 0.9), std::vector<bool>(6, false));
+  // A wall as bright as the post: amplitude cannot tell post, wall and mixture apart.
+  EXPECT_EQ(flagged(mixed_amp, 170.0f, 0.9), std::vector<bool>(6, false));
+  // Dimmer than the wall: not between the two surfaces, so not their mixture.
+  EXPECT_EQ(flagged({25.0f, 25.0f, 25.0f, 180.0f, 180.0f, 180.0f}, 30.0f, 0.9), std::vector<bool>(6, false));
+  // Clipped: a post at the amplitude ceiling says nothing about the share of its light.
+  EXPECT_EQ(flagged({138.5f, 144.0f, 150.0f, 255.0f, 255.0f, 255.0f}, 30.0f, 0.9), std::vector<bool>(6, false));
+}
+
+TEST(RejectMixedPixels, GrazingGroundIsKept) {
+  // Flat ground only, scanned near the horizon: ranges grow fast but smoothly across lines.
+  sim::SimConfig c;
+  c.mount_translation = {0, 0, 1.0};
+  c.mount_rpy = {0, 0, 0};
+  c.scanner.nod_min = -0.35;
+  c.scanner.nod_max = -0.04;
+  c.scanner.nod_rate = 0.6;
+  c.scanner.range_sigma = 0.0053;
+  c.scanner.range_quantum = 0.001;
+  c.lines_per_pass = 120;
+  const auto r = sim::simulate(c);
+  const PoseTrack poses(r.poses);
+  Pass p = r.passes[0].pass;
+  SensorParams s = coaxial_sensor();
+  register_pass(p, RegisterParams{}, s, make_transform(c.mount_translation, c.mount_rpy, c.rpy_order), &poses);
+  const std::size_t kept = p.kept();
+  ASSERT_GT(kept, 10000u);
+  // The budget for valid returns wrongly rejected is 1 %. Measured 2 of 18,110 since each
+  // nod sweep is a sequence of its own (0.5 % before, all where the nod reverses and the lines
+  // fold back over each other).
+  const std::size_t rejected = reject_mixed_pixels(p, MixedPixelParams{}, s);
+  std::printf("grazing ground: %zu of %zu returns rejected\n", rejected, kept);
+  EXPECT_LT(rejected, kept / 1000);
+}
+
+TEST(RejectMixedPixels, OnSimulatedScenesOfTwoSensorSettings) {
+  // The same seeds as bench/pcdp_mixed_bench (which adds the baselines). Measured: A 0.911
+  // (637/699; 0.908 before corners beside one neighbour across, 0.901 with spike_width 1),
+  // B 0.965 (251/260; 0.958 before the amplitude test for spikes, 0.923 before the spike test),
+  // both above the target of 0.90. A is held at 0.905 so that losing the spikes two and three
+  // returns wide fails, B at 0.94 so that losing the spike test fails (docs/mixed_pixels.md:
+  // more seeds).
+  for (char which : {'A', 'B'}) {
+    std::uint64_t pos = 0, tp = 0, valid = 0, fp = 0;
+    for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+      const bench::Setting st = bench::make_setting(which, seed);
+      const sim::SimResult r = sim::simulate(st.sim);
+      const PoseTrack poses(r.poses);
+      const Eigen::Isometry3d T = make_transform(st.sim.mount_translation, st.sim.mount_rpy, st.sim.rpy_order);
+      for (const auto& sp : r.passes) {
+        Pass p = sp.pass;
+        register_pass(p, RegisterParams{}, st.sensor, T, &poses);
+        reject_occlusion(p, OcclusionParams{}, st.sensor);
+        Pass q = p;
+        reject_mixed_pixels(q, MixedPixelParams{}, st.sensor);
+        for (std::size_t i = 0; i < p.size(); ++i) {
+          if (!p.is_kept(i)) continue;
+          const bool flagged = q.label[i] == Label::kMixedPixel;
+          if (sp.truth[i] == Label::kMixedPixel) {
+            ++pos;
+            tp += flagged;
+          } else if (sp.truth[i] == Label::kKept) {
+            ++valid;
+            fp += flagged;
+          }
+        }
+      }
+    }
+    const double recall = static_cast<double>(tp) / static_cast<double>(pos);
+    const double false_rate = static_cast<double>(fp) / static_cast<double>(valid);
+    std::cout << which << ": recall " << recall << " (" << tp << "/" << pos << "), valid rejected " << 100 * false_rate << " %\n";
+    EXPECT_LE(false_rate, 0.01) << which;
+    EXPECT_GE(recall, which == 'B' ? 0.94 : 0.905) << which;
+  }
+}
+
+TEST(RejectMixedPixels, UnorganizedCloudWithAViewpoint) {
+  // A wall at 10 m with a box face at 6 m in front, plus veil points between, shuffled.
+  std::vector<Eigen::Vector3d> pts;
+  std::vector<char> veil;
+  const double step = 0.005;
+  for (int row = -20; row <= 20; ++row) {
+    for (int col = -60; col <= 60; ++col) {
+      const double az = col * step, el = row * step;
+      const Eigen::Vector3d d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+      const bool on_box = col < 0;
+      double range = on_box ? 6.0 / d.x() : 10.0 / d.x();
+      const bool is_veil = col == 0;
+      if (is_veil) range = 8.0 / d.x();
+      pts.push_back(Eigen::Vector3d(1.0, -2.0, 0.5) + range * d);
+      veil.push_back(is_veil);
+    }
+  }
+  std::vector<std::size_t> order(pts.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::shuffle(order.begin(), order.end(), std::mt19937(3));
+  std::vector<Eigen::Vector3d> shuffled;
+  std::vector<char> truth;
+  for (std::size_t i : order) {
+    shuffled.push_back(pts[i]);
+    truth.push_back(veil[i]);
+  }
+  const auto mixed = mixed_pixels_in_cloud(shuffled, Eigen::Vector3d(1.0, -2.0, 0.5), {}, step, MixedPixelParams{}, 0.005);
+  std::size_t tp = 0, fp = 0, pos = 0;
+  for (std::size_t i = 0; i < truth.size(); ++i) {
+    pos += truth[i];
+    tp += truth[i] && mixed[i];
+    fp += !truth[i] && mixed[i];
+  }
+  EXPECT_EQ(tp, pos);
+  EXPECT_EQ(fp, 0u);
+}
+
+TEST(RejectMixedPixels, RealKurt3DScanLosesItsVeilPointsAndKeepsItsFloorAndCeiling) {
+  // ../shared/datasets/kurt3d_3dtk_nodding/scan000.3d: a real nodding SICK scan (3DTK uos: x y z in
+  // cm, left-handed, y up), sensor at the origin, no intensity. 226 lines x 360 beams.
+  const std::string path = std::string(PCDP_SHARED_DIR) + "/datasets/kurt3d_3dtk_nodding/scan000.3d";
+  std::ifstream in(path);
+  ASSERT_TRUE(in) << path;
+  std::string header;
+  std::getline(in, header);
+  std::vector<Eigen::Vector3d> all;
+  for (double x, y, z; in >> x >> y >> z;) all.emplace_back(x / 100.0, y / 100.0, z / 100.0);
+  ASSERT_EQ(all.size(), 226u * 360u);
+  std::vector<char> valid(all.size());
+  std::vector<Eigen::Vector3d> pts;
+  std::vector<std::size_t> back;
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    const double r = all[i].norm();
+    valid[i] = r > 0.48 && r < 32.7;  // config.ini's limits: below is the robot, above the no-return sentinel
+    if (valid[i]) {
+      pts.push_back(all[i]);
+      back.push_back(i);
+    }
+  }
+  const auto mixed = mixed_pixels_in_cloud(pts, Eigen::Vector3d::Zero(), {}, 0.0087, MixedPixelParams{}, 0.005);
+  std::vector<char> removed(all.size(), 0);
+  std::size_t n_removed = 0;
+  for (std::size_t k = 0; k < pts.size(); ++k)
+    if (mixed[k]) {
+      removed[back[k]] = 1;
+      ++n_removed;
+    }
+
+  // From the data: isolated returns inside depth jumps along the scan lines (neighbours more than
+  // 1 m apart, the return more than 0.2 m from both and between them).
+  std::size_t isolated = 0, isolated_removed = 0;
+  for (std::size_t l = 0; l < 226; ++l)
+    for (std::size_t b = 1; b + 1 < 360; ++b) {
+      const std::size_t i = l * 360 + b;
+      if (!valid[i - 1] || !valid[i] || !valid[i + 1]) continue;
+      const double r0 = all[i - 1].norm(), r1 = all[i].norm(), r2 = all[i + 1].norm();
+      if (std::fabs(r0 - r2) > 1.0 && std::fabs(r1 - r0) > 0.2 && std::fabs(r1 - r2) > 0.2 && r1 > std::min(r0, r2) &&
+          r1 < std::max(r0, r2)) {
+        ++isolated;
+        isolated_removed += removed[i];
+      }
+    }
+  // From the data: the floor and ceiling planes (y up): least-squares planes through the points
+  // near y = -0.40 m and y = 2.0 m; their interior is the points that lie within 2 cm of the plane
+  // together with their four scan neighbours (a point at the foot of the robot or a wall is not
+  // interior: real veils hang there).
+  std::size_t planar = 0, planar_removed = 0;
+  std::vector<char> on_plane(all.size(), 0);
+  for (const auto& [lo, hi] : {std::pair{-0.5, -0.3}, std::pair{1.9, 2.1}}) {
+    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+    for (const auto& p : pts)
+      if (p.y() > lo && p.y() < hi) {  // y = a x + b z + c
+        const Eigen::Vector3d row(p.x(), p.z(), 1.0);
+        A += row * row.transpose();
+        rhs += row * p.y();
+      }
+    const Eigen::Vector3d abc = A.ldlt().solve(rhs);
+    for (std::size_t i = 0; i < all.size(); ++i) {
+      const auto& p = all[i];
+      if (valid[i] && std::fabs(p.y() - (abc[0] * p.x() + abc[1] * p.z() + abc[2])) < 0.02) on_plane[i] = 1;
+    }
+  }
+  for (std::size_t l = 1; l + 1 < 226; ++l)
+    for (std::size_t b = 1; b + 1 < 360; ++b) {
+      const std::size_t i = l * 360 + b;
+      if (on_plane[i] && on_plane[i - 1] && on_plane[i + 1] && on_plane[i - 360] && on_plane[i + 360]) {
+        ++planar;
+        planar_removed += removed[i];
+      }
+    }
+  std::cout << "Kurt3D scan000: " << pts.size() << " valid points, " << n_removed << " removed; isolated returns in depth jumps "
+            << isolated_removed << "/" << isolated << " removed; floor and ceiling interior " << planar_removed << "/" << planar
+            << " removed\n";
+  ASSERT_GT(isolated, 300u);
+  ASSERT_GT(planar, 5000u);
+  EXPECT_GE(static_cast<double>(isolated_removed), 0.6 * static_cast<double>(isolated));
+  EXPECT_LE(static_cast<double>(planar_removed), 0.01 * static_cast<double>(planar));  // the 1 % budget
+}
