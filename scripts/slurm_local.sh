@@ -1,0 +1,307 @@
+#!/usr/bin/env bash
+# A real one-node Slurm cluster on this machine, for tests and laptops:
+#   scripts/slurm_local.sh start    start munged, slurmctld, slurmd; wait until the node is idle
+#   scripts/slurm_local.sh stop     cancel the jobs, stop the daemons, end what they left running
+#   scripts/slurm_local.sh status   print each daemon's pid and the node's state (exit 1 when down)
+#   scripts/slurm_local.sh env      print the `export SLURM_CONF=...` line the clients need
+# All idempotent: start when started and stop when stopped do nothing and succeed.
+#
+# What it runs: the Debian 12 packages slurmctld, slurmd, slurm-client and munge (Slurm 22.05),
+# installed with apt-get when missing (so the project's normal build, scripts/setup.sh, needs no
+# Slurm). No systemd and no cgroups: each daemon is started by hand, daemonizes, and is found again
+# and stopped through its pid file. Everything lives under one folder,
+#   SLURM_LOCAL_DIR (default /tmp/pcdp-slurm):
+#     slurm.conf          the configuration (rewritten at each start)
+#     munge/              munge.key, munged's socket, pid, seed and log (owned by the munge user)
+#     spool/ctld, spool/d StateSaveLocation and SlurmdSpoolDir
+#     log/                slurmctld.log, slurmd.log, jobcomp.txt (one line per finished job)
+#     run/                slurmctld.pid, slurmd.pid
+# Clients (sbatch, squeue, scontrol) find the cluster through SLURM_CONF=$SLURM_LOCAL_DIR/slurm.conf;
+# `start` and `env` print that line. Other settings:
+#   SLURM_LOCAL_PORT     slurmctld's port (default 6817); slurmd uses the next one
+#   SLURM_LOCAL_CPUS     CPUs the node declares (default 8, more than this machine's cores)
+#   SLURM_LOCAL_NODE     the node's name (default pcdp-node1)
+#   SLURM_LOCAL_TIMEOUT  seconds each wait may take (default 60)
+#
+# Pitfalls of Debian 12 / Slurm 22.05 and how this script handles them:
+# - munged's default socket and pid file live in /run/munge, which does not exist without systemd
+#   (tmpfiles.d creates it at boot). Here munged gets --socket, --pid-file, --seed-file, --log-file
+#   and --key-file under munge/, and slurm.conf says AuthInfo=socket=... (read by both auth/munge and
+#   cred/munge), so /run/munge is neither needed nor touched.
+# - munged refuses to run as root, and it refuses a key or directories that others may write. As
+#   root it runs as the munge user (runuser -u munge) with munge/ owned by munge (mode 0711, so
+#   clients reach the socket) and the key 0400; as another user it runs as that user.
+# - The daemons must not need systemd or cgroups: ProctrackType=proctrack/linuxproc (process tree by
+#   /proc), TaskPlugin=task/none, JobAcctGatherType=jobacct_gather/none, no cgroup.conf.
+# - `kill_invalid_depend` is a DependencyParameters option (not SchedulerParameters, where 22.05
+#   ignores it): with it a job whose afterok dependency failed ends CANCELLED with reason
+#   DependencyNeverSatisfied instead of pending for ever.
+# - `sbatch --wait` returns 0 for a job cancelled by a failed dependency: do not trust it; check each
+#   job's state with `scontrol show job` (scripts/slurm_lib.sh: slurm_wait_jobs).
+# - Batch jobs start on a 3 s tick by default: SchedulerParameters=batch_sched_delay=0 schedules
+#   them at submission, sched_min_interval=0 removes the throttle between scheduling passes.
+# - Finished jobs disappear from scontrol after MinJobAge (300 s): MinJobAge=86400 keeps them
+#   visible for a day.
+# - There is no sacct without an accounting database (slurmdbd): use `scontrol show job`, or the
+#   JobCompType=jobcomp/filetxt record in log/jobcomp.txt, which outlives the daemons.
+# - Tests want parallel tasks on a small machine: the node declares SLURM_LOCAL_CPUS CPUs with
+#   SlurmdParameters=config_overrides (otherwise slurmd registers the real count, or the node is
+#   drained as INVALID), and SelectTypeParameters=CR_CPU so memory is not a consumed resource.
+# - slurmctld only runs on the host named by SlurmctldHost, so that is this host's short name,
+#   reached at 127.0.0.1; the node is named SLURM_LOCAL_NODE and slurmd is started with -N.
+# - ReturnToService=2 so a node that was DOWN (e.g. slurmd killed) comes back when slurmd registers.
+# - Stopping slurmd does not end the slurmstepd of running jobs: stop cancels the jobs first, and
+#   every daemon is started with PCDP_SLURM_LOCAL_DIR in its environment (slurmstepd inherits it),
+#   so stop finds and ends exactly this cluster's leftovers and nothing else.
+# - The daemons must not inherit the lock's descriptor (flock on $DIR/.lock serializes start and
+#   stop), else they hold the lock for ever: they are started with 9>&-.
+# - Every wait has a deadline (SLURM_LOCAL_TIMEOUT); when start fails it prints the logs' tails.
+set -euo pipefail
+
+DIR="${SLURM_LOCAL_DIR:-/tmp/pcdp-slurm}"
+PORT="${SLURM_LOCAL_PORT:-6817}"
+CPUS="${SLURM_LOCAL_CPUS:-8}"
+NODE="${SLURM_LOCAL_NODE:-pcdp-node1}"
+TIMEOUT="${SLURM_LOCAL_TIMEOUT:-60}"
+PACKAGES=(slurmctld slurmd slurm-client munge)
+
+die() { echo "slurm_local: $*" >&2; exit 1; }
+say() { echo "slurm_local: $*" >&2; }
+
+case "$DIR" in /*) ;; *) DIR="$PWD/$DIR" ;; esac
+MUNGE_DIR="$DIR/munge"
+SOCKET="$MUNGE_DIR/munge.socket.2"
+CONF="$DIR/slurm.conf"
+export SLURM_CONF="$CONF"
+
+ME="$(id -un)"
+if [ "$(id -u)" -eq 0 ]; then ROOT=1; MUNGE_USER=munge; else ROOT=0; MUNGE_USER="$ME"; fi
+
+install_packages() {
+  local missing=() p
+  for p in "${PACKAGES[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  done
+  [ ${#missing[@]} -eq 0 ] && return 0
+  say "installing ${missing[*]}"
+  local sudo=""
+  if [ "$ROOT" -eq 0 ]; then
+    command -v sudo >/dev/null || die "packages missing (${missing[*]}) and no sudo to install them"
+    sudo="sudo"
+  fi
+  $sudo apt-get update -qq
+  # policy-rc.d or not, the packages' own services are not used: this script starts its own daemons
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+}
+
+# pid_of NAME PIDFILE: the pid in PIDFILE when that process is alive and is NAME, else nothing
+pid_of() {
+  local name="$1" file="$2" pid
+  [ -s "$file" ] || return 0
+  pid="$(tr -dc 0-9 <"$file")"
+  [ -n "$pid" ] && [ -r "/proc/$pid/comm" ] || return 0
+  [ "$(cat "/proc/$pid/comm" 2>/dev/null)" = "$name" ] && echo "$pid"
+  return 0
+}
+munged_pid() { pid_of munged "$MUNGE_DIR/munged.pid"; }
+ctld_pid() { pid_of slurmctld "$DIR/run/slurmctld.pid"; }
+slurmd_pid() { pid_of slurmd "$DIR/run/slurmd.pid"; }
+
+# this cluster's processes: those started with PCDP_SLURM_LOCAL_DIR=$DIR (slurmstepd inherits it)
+our_processes() {
+  local e pid
+  for e in /proc/[0-9]*/environ; do
+    pid="${e#/proc/}"; pid="${pid%/environ}"
+    [ "$pid" = "$$" ] && continue
+    if { tr '\0' '\n' <"$e"; } 2>/dev/null | grep -qxF "PCDP_SLURM_LOCAL_DIR=$DIR"; then
+      case "$(cat "/proc/$pid/comm" 2>/dev/null)" in munged|slurmctld|slurmscriptd|slurmd|slurmstepd) echo "$pid" ;; esac
+    fi
+  done
+}
+
+# wait_for SECONDS WHAT COMMAND...: run COMMAND every 0.1 s until it succeeds or the deadline passes
+wait_for() {
+  local secs="$1" what="$2"; shift 2
+  local deadline=$((SECONDS + secs))
+  until "$@" >/dev/null 2>&1; do
+    [ $SECONDS -ge $deadline ] && { say "timed out after ${secs}s waiting for $what"; return 1; }
+    sleep 0.1
+  done
+}
+
+show_logs() {
+  local f
+  for f in "$MUNGE_DIR/munged.log" "$DIR/log/slurmctld.log" "$DIR/log/slurmd.log"; do
+    [ -r "$f" ] || continue
+    echo "----- tail of $f" >&2
+    tail -n 25 "$f" >&2
+  done
+}
+
+node_state() { scontrol show node "$NODE" -o 2>/dev/null | sed -n 's/.* State=\([^ ]*\).*/\1/p'; }
+node_idle() { case "$(node_state)" in IDLE|IDLE+*) return 0 ;; *) return 1 ;; esac; }
+munge_works() { munge -n -S "$SOCKET" | unmunge -S "$SOCKET"; }
+ctld_up() { scontrol ping | grep -q "is UP"; }
+
+write_conf() {
+  local host; host="$(hostname -s)"
+  cat >"$CONF" <<EOF
+# written by scripts/slurm_local.sh; rewritten at each start
+ClusterName=pcdp
+SlurmctldHost=$host(127.0.0.1)
+SlurmctldPort=$PORT
+SlurmdPort=$((PORT + 1))
+SlurmUser=$ME
+SlurmdUser=$ME
+AuthType=auth/munge
+CredType=cred/munge
+AuthInfo=socket=$SOCKET
+StateSaveLocation=$DIR/spool/ctld
+SlurmdSpoolDir=$DIR/spool/d
+SlurmctldPidFile=$DIR/run/slurmctld.pid
+SlurmdPidFile=$DIR/run/slurmd.pid
+SlurmctldLogFile=$DIR/log/slurmctld.log
+SlurmdLogFile=$DIR/log/slurmd.log
+SlurmctldDebug=info
+SlurmdDebug=info
+ProctrackType=proctrack/linuxproc
+TaskPlugin=task/none
+JobAcctGatherType=jobacct_gather/none
+AccountingStorageType=accounting_storage/none
+JobCompType=jobcomp/filetxt
+JobCompLoc=$DIR/log/jobcomp.txt
+MpiDefault=none
+SwitchType=switch/none
+SchedulerType=sched/backfill
+SchedulerParameters=batch_sched_delay=0,sched_min_interval=0
+DependencyParameters=kill_invalid_depend
+SelectType=select/cons_tres
+SelectTypeParameters=CR_CPU
+SlurmdParameters=config_overrides
+ReturnToService=2
+MinJobAge=86400
+KillWait=5
+InactiveLimit=0
+Waittime=0
+NodeName=$NODE NodeHostname=$host NodeAddr=127.0.0.1 CPUs=$CPUS State=UNKNOWN
+PartitionName=local Nodes=$NODE Default=YES MaxTime=INFINITE State=UP
+EOF
+}
+
+start_munged() {
+  [ -n "$(munged_pid)" ] && return 0
+  mkdir -p "$MUNGE_DIR"
+  chmod 0711 "$MUNGE_DIR"
+  [ "$ROOT" -eq 1 ] && chown munge:munge "$MUNGE_DIR"
+  if [ ! -s "$MUNGE_DIR/munge.key" ]; then
+    (umask 077; dd if=/dev/urandom of="$MUNGE_DIR/munge.key" bs=1024 count=1 status=none)
+  fi
+  chmod 0400 "$MUNGE_DIR/munge.key"
+  [ "$ROOT" -eq 1 ] && chown munge:munge "$MUNGE_DIR/munge.key"
+  rm -f "$SOCKET" "$SOCKET.lock"
+  local run=()
+  [ "$ROOT" -eq 1 ] && run=(runuser -u munge --)
+  "${run[@]}" env PCDP_SLURM_LOCAL_DIR="$DIR" munged \
+    --socket="$SOCKET" --key-file="$MUNGE_DIR/munge.key" --pid-file="$MUNGE_DIR/munged.pid" \
+    --seed-file="$MUNGE_DIR/munged.seed" --log-file="$MUNGE_DIR/munged.log" 9>&- \
+    || { show_logs; die "munged did not start"; }
+  wait_for "$TIMEOUT" "munged to answer on $SOCKET" munge_works || { show_logs; die "munged is not answering"; }
+}
+
+start() {
+  install_packages
+  mkdir -p "$DIR"
+  exec 9>>"$DIR/.lock"
+  flock -w "$TIMEOUT" 9 || die "another slurm_local.sh holds $DIR/.lock"
+  chmod 0755 "$DIR"  # munged refuses a key under a folder others may write
+  mkdir -p "$DIR/spool/ctld" "$DIR/spool/d" "$DIR/log" "$DIR/run"
+  if [ -n "$(ctld_pid)" ] && [ -n "$(slurmd_pid)" ] && [ -n "$(munged_pid)" ]; then
+    say "already running ($DIR)"
+  else
+    [ -n "$(ctld_pid)$(slurmd_pid)" ] || write_conf
+    start_munged
+    if [ -z "$(ctld_pid)" ]; then
+      env PCDP_SLURM_LOCAL_DIR="$DIR" slurmctld -f "$CONF" 9>&- || { show_logs; die "slurmctld did not start"; }
+    fi
+    wait_for "$TIMEOUT" "slurmctld to answer" ctld_up || { show_logs; die "slurmctld is not answering"; }
+    if [ -z "$(slurmd_pid)" ]; then
+      env PCDP_SLURM_LOCAL_DIR="$DIR" slurmd -f "$CONF" -N "$NODE" 9>&- || { show_logs; die "slurmd did not start"; }
+    fi
+  fi
+  if ! wait_for "$TIMEOUT" "node $NODE to be idle" node_idle; then
+    scontrol show node "$NODE" >&2 || true
+    show_logs
+    die "node $NODE is not idle (state: $(node_state))"
+  fi
+  say "node $NODE is $(node_state); clients need:"
+  echo "export SLURM_CONF=$CONF"
+}
+
+# stop_pid NAME PID: SIGTERM, then SIGKILL once the deadline has passed
+stop_pid() {
+  local name="$1" pid="$2"
+  [ -n "$pid" ] || return 0
+  kill -TERM "$pid" 2>/dev/null || return 0
+  if ! wait_for "$TIMEOUT" "$name ($pid) to exit" test ! -e "/proc/$pid"; then
+    say "killing $name ($pid)"
+    kill -KILL "$pid" 2>/dev/null || true
+    wait_for 10 "$name ($pid) to die" test ! -e "/proc/$pid" || true
+  fi
+}
+
+stop() {
+  [ -d "$DIR" ] || { say "not running ($DIR does not exist)"; return 0; }
+  exec 9>>"$DIR/.lock"
+  flock -w "$TIMEOUT" 9 || die "another slurm_local.sh holds $DIR/.lock"
+  if [ -n "$(ctld_pid)" ] && [ -n "$(munged_pid)" ]; then
+    local jobs
+    jobs="$(squeue -h -o %i 2>/dev/null | tr '\n' ' ')" || true
+    if [ -n "${jobs// }" ]; then
+      say "cancelling jobs: $jobs"
+      # shellcheck disable=SC2086
+      scancel $jobs 2>/dev/null || true
+      wait_for "$TIMEOUT" "the jobs to end" bash -c '[ -z "$(squeue -h -o %i)" ]' || true
+    fi
+  fi
+  local d c m
+  d="$(slurmd_pid)"; c="$(ctld_pid)"; m="$(munged_pid)"
+  # all at once (each takes a second or two to exit), then wait for each with the deadline
+  kill -TERM $d $c $m 2>/dev/null || true
+  stop_pid slurmd "$d"
+  stop_pid slurmctld "$c"
+  stop_pid munged "$m"
+  local left pid
+  left="$(our_processes)"
+  for pid in $left; do
+    stop_pid "$(cat "/proc/$pid/comm" 2>/dev/null || echo process)" "$pid"
+  done
+  rm -f "$DIR/run/slurmctld.pid" "$DIR/run/slurmd.pid" "$SOCKET" "$SOCKET.lock"
+  left="$(our_processes)"
+  [ -z "$left" ] || die "still running after stop: $left"
+  say "stopped ($DIR)"
+}
+
+status() {
+  local m c d rc=0
+  m="$(munged_pid)"; c="$(ctld_pid)"; d="$(slurmd_pid)"
+  echo "dir: $DIR"
+  echo "munged: ${m:-not running}"
+  echo "slurmctld: ${c:-not running}"
+  echo "slurmd: ${d:-not running}"
+  if [ -n "$c" ] && [ -n "$m" ]; then
+    echo "node $NODE: $(node_state || true)"
+    [ -n "$d" ] || rc=1
+  else
+    echo "node $NODE: down"
+    rc=1
+  fi
+  return $rc
+}
+
+case "${1:-}" in
+  start) start ;;
+  stop) stop ;;
+  status) status ;;
+  env) echo "export SLURM_CONF=$CONF" ;;
+  *) echo "usage: $0 start|stop|status|env" >&2; exit 2 ;;
+esac
