@@ -40,6 +40,9 @@
 #   job's state with `scontrol show job` (scripts/slurm_lib.sh: slurm_wait_jobs).
 # - Batch jobs start on a 3 s tick by default: SchedulerParameters=batch_sched_delay=0 schedules
 #   them at submission, sched_min_interval=0 removes the throttle between scheduling passes.
+#   Even so the main scheduler runs on slurmctld's 1 s background tick (a job waits up to 1 s), and
+#   its first cycle comes about 3 s after slurmctld starts: `start` waits for it (sdiag's "Total
+#   cycles" >= 1), so the first job does not pay those 3 s.
 # - Finished jobs disappear from scontrol after MinJobAge (300 s): MinJobAge=86400 keeps them
 #   visible for a day.
 # - There is no sacct without an accounting database (slurmdbd): use `scontrol show job`, or the
@@ -142,6 +145,7 @@ node_state() { scontrol show node "$NODE" -o 2>/dev/null | sed -n 's/.* State=\(
 node_idle() { case "$(node_state)" in IDLE|IDLE+*) return 0 ;; *) return 1 ;; esac; }
 munge_works() { munge -n -S "$SOCKET" | unmunge -S "$SOCKET"; }
 ctld_up() { scontrol ping | grep -q "is UP"; }
+scheduler_live() { sdiag | awk '/^Main schedule statistics/ { m = 1 } m && /Total cycles:/ { exit !($3 >= 1) }'; }
 
 write_conf() {
   local host; host="$(hostname -s)"
@@ -215,12 +219,14 @@ start() {
   flock -w "$TIMEOUT" 9 || die "another slurm_local.sh holds $DIR/.lock"
   chmod 0755 "$DIR"  # munged refuses a key under a folder others may write
   mkdir -p "$DIR/spool/ctld" "$DIR/spool/d" "$DIR/log" "$DIR/run"
+  local fresh=0
   if [ -n "$(ctld_pid)" ] && [ -n "$(slurmd_pid)" ] && [ -n "$(munged_pid)" ]; then
     say "already running ($DIR)"
   else
     [ -n "$(ctld_pid)$(slurmd_pid)" ] || write_conf
     start_munged
     if [ -z "$(ctld_pid)" ]; then
+      fresh=1
       env PCDP_SLURM_LOCAL_DIR="$DIR" slurmctld -f "$CONF" 9>&- || { show_logs; die "slurmctld did not start"; }
     fi
     wait_for "$TIMEOUT" "slurmctld to answer" ctld_up || { show_logs; die "slurmctld is not answering"; }
@@ -232,6 +238,10 @@ start() {
     scontrol show node "$NODE" >&2 || true
     show_logs
     die "node $NODE is not idle (state: $(node_state))"
+  fi
+  if [ "$fresh" -eq 1 ] && ! wait_for "$TIMEOUT" "the main scheduler's first cycle" scheduler_live; then
+    show_logs
+    die "slurmctld's main scheduler has not run"
   fi
   say "node $NODE is $(node_state); clients need:"
   echo "export SLURM_CONF=$CONF"
