@@ -97,12 +97,28 @@ install_packages() {
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 }
 
+# alive PID...: true when every PID is a live process (a zombie is not: PID 1 may be slow to reap it)
+alive() {
+  local p st
+  for p in "$@"; do
+    { read -r st <"/proc/$p/stat"; } 2>/dev/null || return 1
+    st="${st##*) }"  # the state follows "(comm) ", and comm may hold blanks
+    [ -n "$st" ] && [ "${st%% *}" != Z ] || return 1
+  done
+}
+# any_alive PID...: true when one of the PIDs is a live process
+any_alive() {
+  local p
+  for p in "$@"; do alive "$p" && return 0; done
+  return 1
+}
+
 # pid_of NAME PIDFILE: the pid in PIDFILE when that process is alive and is NAME, else nothing
 pid_of() {
   local name="$1" file="$2" pid
   [ -s "$file" ] || return 0
   pid="$(tr -dc 0-9 <"$file")"
-  [ -n "$pid" ] && [ -r "/proc/$pid/comm" ] || return 0
+  [ -n "$pid" ] && alive "$pid" || return 0
   [ "$(cat "/proc/$pid/comm" 2>/dev/null)" = "$name" ] && echo "$pid"
   return 0
 }
@@ -112,14 +128,21 @@ slurmd_pid() { pid_of slurmd "$DIR/run/slurmd.pid"; }
 
 # this cluster's processes: those started with PCDP_SLURM_LOCAL_DIR=$DIR (slurmstepd inherits it)
 our_processes() {
-  local e pid
-  for e in /proc/[0-9]*/environ; do
-    pid="${e#/proc/}"; pid="${pid%/environ}"
-    [ "$pid" = "$$" ] && continue
-    if { tr '\0' '\n' <"$e"; } 2>/dev/null | grep -qxF "PCDP_SLURM_LOCAL_DIR=$DIR"; then
-      case "$(cat "/proc/$pid/comm" 2>/dev/null)" in munged|slurmctld|slurmscriptd|slurmd|slurmstepd) echo "$pid" ;; esac
-    fi
+  local c comm pid
+  for c in /proc/[0-9]*/comm; do
+    { read -r comm <"$c"; } 2>/dev/null || continue
+    case "$comm" in munged|slurmctld|slurmscriptd|slurmd|slurmstepd) ;; *) continue ;; esac
+    pid="${c#/proc/}"; pid="${pid%/comm}"
+    grep -qazxF "PCDP_SLURM_LOCAL_DIR=$DIR" "/proc/$pid/environ" 2>/dev/null && echo "$pid"
   done
+  return 0
+}
+
+# descendants PID: the pids of PID's children, grandchildren, ...
+descendants() {
+  ps -eo pid=,ppid= | awk -v root="$1" '
+    { parent[$1] = $2 }
+    END { for (p in parent) { q = parent[p]; while (q != "" && q != 0 && q != 1) { if (q == root) { print p; break } q = parent[q] } } }'
 }
 
 # wait_for SECONDS WHAT COMMAND...: run COMMAND every 0.1 s until it succeeds or the deadline passes
@@ -252,10 +275,10 @@ stop_pid() {
   local name="$1" pid="$2"
   [ -n "$pid" ] || return 0
   kill -TERM "$pid" 2>/dev/null || return 0
-  if ! wait_for "$TIMEOUT" "$name ($pid) to exit" test ! -e "/proc/$pid"; then
+  if ! wait_for "$TIMEOUT" "$name ($pid) to exit" eval '! alive '"$pid"; then
     say "killing $name ($pid)"
     kill -KILL "$pid" 2>/dev/null || true
-    wait_for 10 "$name ($pid) to die" test ! -e "/proc/$pid" || true
+    wait_for 10 "$name ($pid) to die" eval '! alive '"$pid" || true
   fi
 }
 
@@ -280,10 +303,19 @@ stop() {
   stop_pid slurmd "$d"
   stop_pid slurmctld "$c"
   stop_pid munged "$m"
-  local left pid
+  # leftovers (a slurmstepd whose job could not be cancelled, e.g. slurmctld was dead): end the job's
+  # processes (its descendants, which do not carry the variable), then slurmstepd, which ignores TERM
+  local left pid tree
   left="$(our_processes)"
   for pid in $left; do
-    stop_pid "$(cat "/proc/$pid/comm" 2>/dev/null || echo process)" "$pid"
+    tree="$(descendants "$pid" | tr '\n' ' ')"
+    say "ending leftover $(cat "/proc/$pid/comm" 2>/dev/null) ($pid) and its processes ${tree:-(none)}"
+    # shellcheck disable=SC2086
+    kill -TERM $tree 2>/dev/null || true
+    wait_for 5 "the processes of $pid to exit" eval "! any_alive $tree" \
+      || kill -KILL $tree 2>/dev/null || true
+    kill -KILL "$pid" 2>/dev/null || true
+    wait_for 10 "$pid to die" eval "! alive $pid" || true
   done
   rm -f "$DIR/run/slurmctld.pid" "$DIR/run/slurmd.pid" "$SOCKET" "$SOCKET.lock"
   left="$(our_processes)"

@@ -107,18 +107,18 @@ t="$(now)"
 "$here/slurm_local.sh" stop
 trap - EXIT
 left=""
-for e in /proc/[0-9]*/environ; do
-  pid="${e#/proc/}"; pid="${pid%/environ}"
-  if { tr '\0' '\n' <"$e"; } 2>/dev/null | grep -qxF "PCDP_SLURM_LOCAL_DIR=$SLURM_LOCAL_DIR"; then
-    left="$left $pid($(cat "/proc/$pid/comm" 2>/dev/null))"
-  fi
+for c in /proc/[0-9]*/comm; do
+  { read -r comm <"$c"; } 2>/dev/null || continue
+  case "$comm" in munged|slurmctld|slurmscriptd|slurmd|slurmstepd) ;; *) continue ;; esac
+  pid="${c#/proc/}"; pid="${pid%/comm}"
+  if grep -qazxF "PCDP_SLURM_LOCAL_DIR=$SLURM_LOCAL_DIR" "/proc/$pid/environ" 2>/dev/null; then left="$left $pid($comm)"; fi
 done
 [ -z "$left" ] || fail "processes left after stop:$left"
 for f in munge/munged.pid run/slurmctld.pid run/slurmd.pid; do
   p="$(cat "$SLURM_LOCAL_DIR/$f" 2>/dev/null || true)"
   [ -z "$p" ] || [ ! -e "/proc/$p" ] || fail "$f: $p still running"
 done
-others="$(ps -eo pid=,comm= | awk '$2 ~ /^(munged|slurmctld|slurmscriptd|slurmd|slurmstepd)$/' | tr '\n' ' ')"
+others="$(ps -eo pid=,stat=,comm= | awk '$2 !~ /^Z/ && $3 ~ /^(munged|slurmctld|slurmscriptd|slurmd|slurmstepd)$/ { print $1 "(" $3 ")" }' | tr '\n' ' ')"
 [ -z "$others" ] || echo "selftest: note: other Slurm/munge processes on this machine (not this cluster's): $others"
 "$here/slurm_local.sh" stop >/dev/null 2>&1 || fail "a second stop failed"
 echo "selftest: cluster stopped in $(since "$t") s"
