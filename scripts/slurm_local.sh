@@ -166,6 +166,7 @@ show_logs() {
 
 node_state() { scontrol show node "$NODE" -o 2>/dev/null | sed -n 's/.* State=\([^ ]*\).*/\1/p'; }
 node_idle() { case "$(node_state)" in IDLE|IDLE+*) return 0 ;; *) return 1 ;; esac; }
+port_free() { ! (exec 3<>"/dev/tcp/127.0.0.1/$1") 2>/dev/null; }
 munge_works() { munge -n -S "$SOCKET" | unmunge -S "$SOCKET"; }
 ctld_up() { scontrol ping | grep -q "is UP"; }
 scheduler_live() { sdiag | awk '/^Main schedule statistics/ { m = 1 } m && /Total cycles:/ { exit !($3 >= 1) }'; }
@@ -198,6 +199,7 @@ AccountingStorageType=accounting_storage/none
 JobCompType=jobcomp/filetxt
 JobCompLoc=$DIR/log/jobcomp.txt
 MpiDefault=none
+MailProg=/bin/true
 SwitchType=switch/none
 SchedulerType=sched/backfill
 SchedulerParameters=batch_sched_delay=0,sched_min_interval=0
@@ -246,21 +248,29 @@ start() {
   if [ -n "$(ctld_pid)" ] && [ -n "$(slurmd_pid)" ] && [ -n "$(munged_pid)" ]; then
     say "already running ($DIR)"
   else
+    # ports in use by another cluster: refuse before starting anything
+    [ -n "$(ctld_pid)" ] || port_free "$PORT" \
+      || die "port $PORT (slurmctld) is in use, another cluster? set SLURM_LOCAL_PORT"
+    [ -n "$(slurmd_pid)" ] || port_free $((PORT + 1)) \
+      || die "port $((PORT + 1)) (slurmd) is in use, another cluster? set SLURM_LOCAL_PORT"
     [ -n "$(ctld_pid)$(slurmd_pid)" ] || write_conf
     start_munged
     if [ -z "$(ctld_pid)" ]; then
       fresh=1
       env PCDP_SLURM_LOCAL_DIR="$DIR" slurmctld -f "$CONF" 9>&- || { show_logs; die "slurmctld did not start"; }
     fi
-    wait_for "$TIMEOUT" "slurmctld to answer" ctld_up || { show_logs; die "slurmctld is not answering"; }
+    # (a daemon that exited, e.g. on a port in use, ends the wait at once)
+    wait_for "$TIMEOUT" "slurmctld to answer" eval '[ -z "$(ctld_pid)" ] || ctld_up' && [ -n "$(ctld_pid)" ] \
+      || { show_logs; die "slurmctld is not answering (port $PORT in use? set SLURM_LOCAL_PORT)"; }
     if [ -z "$(slurmd_pid)" ]; then
       env PCDP_SLURM_LOCAL_DIR="$DIR" slurmd -f "$CONF" -N "$NODE" 9>&- || { show_logs; die "slurmd did not start"; }
     fi
   fi
-  if ! wait_for "$TIMEOUT" "node $NODE to be idle" node_idle; then
+  if ! wait_for "$TIMEOUT" "node $NODE to be idle" eval '[ -z "$(slurmd_pid)" ] || node_idle' \
+     || [ -z "$(slurmd_pid)" ]; then
     scontrol show node "$NODE" >&2 || true
     show_logs
-    die "node $NODE is not idle (state: $(node_state))"
+    die "node $NODE is not idle (state: $(node_state); slurmd: $(slurmd_pid || true))"
   fi
   if [ "$fresh" -eq 1 ] && ! wait_for "$TIMEOUT" "the main scheduler's first cycle" scheduler_live; then
     show_logs
