@@ -1,3 +1,4 @@
+# shellcheck shell=bash
 # Bash helpers for Slurm jobs; source it: `. scripts/slurm_lib.sh`. Needs scontrol and SLURM_CONF
 # (scripts/slurm_local.sh env) or a configured cluster; no sacct (no accounting database needed).
 

@@ -78,7 +78,7 @@ CONF="$DIR/slurm.conf"
 export SLURM_CONF="$CONF"
 
 ME="$(id -un)"
-if [ "$(id -u)" -eq 0 ]; then ROOT=1; MUNGE_USER=munge; else ROOT=0; MUNGE_USER="$ME"; fi
+if [ "$(id -u)" -eq 0 ]; then ROOT=1; else ROOT=0; fi
 
 install_packages() {
   local missing=() p
@@ -122,16 +122,25 @@ pid_of() {
   [ "$(cat "/proc/$pid/comm" 2>/dev/null)" = "$name" ] && echo "$pid"
   return 0
 }
-munged_pid() { pid_of munged "$MUNGE_DIR/munged.pid"; }
-ctld_pid() { pid_of slurmctld "$DIR/run/slurmctld.pid"; }
-slurmd_pid() { pid_of slurmd "$DIR/run/slurmd.pid"; }
+# daemon_pid NAME PIDFILE: the daemon's pid, from its pid file, else (pid file not yet written, or
+# lost) from the environment it was started with
+daemon_pid() {
+  local pid
+  pid="$(pid_of "$1" "$2")"
+  [ -n "$pid" ] || pid="$(our_processes "$1" | sort -n | head -n 1)"
+  echo "$pid"
+}
+munged_pid() { daemon_pid munged "$MUNGE_DIR/munged.pid"; }
+ctld_pid() { daemon_pid slurmctld "$DIR/run/slurmctld.pid"; }
+slurmd_pid() { daemon_pid slurmd "$DIR/run/slurmd.pid"; }
 
-# this cluster's processes: those started with PCDP_SLURM_LOCAL_DIR=$DIR (slurmstepd inherits it)
+# our_processes [NAME]: this cluster's processes (named NAME): those started with PCDP_SLURM_LOCAL_DIR=$DIR (slurmstepd inherits it)
 our_processes() {
   local c comm pid
   for c in /proc/[0-9]*/comm; do
     { read -r comm <"$c"; } 2>/dev/null || continue
     case "$comm" in munged|slurmctld|slurmscriptd|slurmd|slurmstepd) ;; *) continue ;; esac
+    [ -z "${1:-}" ] || [ "$comm" = "$1" ] || continue
     pid="${c#/proc/}"; pid="${pid%/comm}"
     grep -qazxF "PCDP_SLURM_LOCAL_DIR=$DIR" "/proc/$pid/environ" 2>/dev/null && echo "$pid"
   done
@@ -259,18 +268,24 @@ start() {
       fresh=1
       env PCDP_SLURM_LOCAL_DIR="$DIR" slurmctld -f "$CONF" 9>&- || { show_logs; die "slurmctld did not start"; }
     fi
-    # (a daemon that exited, e.g. on a port in use, ends the wait at once)
-    wait_for "$TIMEOUT" "slurmctld to answer" eval '[ -z "$(ctld_pid)" ] || ctld_up' && [ -n "$(ctld_pid)" ] \
-      || { show_logs; die "slurmctld is not answering (port $PORT in use? set SLURM_LOCAL_PORT)"; }
+    # (a daemon that exited ends the wait at once; daemon_pid finds it by its environment when its
+    # pid file is not yet written: slurmd's parent returns before its child writes it)
+    # shellcheck disable=SC2016  # eval'ed by wait_for at each try
+    if ! wait_for "$TIMEOUT" "slurmctld to answer" eval '[ -z "$(ctld_pid)" ] || ctld_up' \
+       || [ -z "$(ctld_pid)" ]; then
+      show_logs
+      die "slurmctld is not answering"
+    fi
     if [ -z "$(slurmd_pid)" ]; then
       env PCDP_SLURM_LOCAL_DIR="$DIR" slurmd -f "$CONF" -N "$NODE" 9>&- || { show_logs; die "slurmd did not start"; }
     fi
   fi
+  # shellcheck disable=SC2016  # eval'ed by wait_for at each try
   if ! wait_for "$TIMEOUT" "node $NODE to be idle" eval '[ -z "$(slurmd_pid)" ] || node_idle' \
      || [ -z "$(slurmd_pid)" ]; then
     scontrol show node "$NODE" >&2 || true
     show_logs
-    die "node $NODE is not idle (state: $(node_state); slurmd: $(slurmd_pid || true))"
+    die "node $NODE is not idle (state: $(node_state); slurmd: $(slurmd_pid))"
   fi
   if [ "$fresh" -eq 1 ] && ! wait_for "$TIMEOUT" "the main scheduler's first cycle" scheduler_live; then
     show_logs
@@ -303,12 +318,14 @@ stop() {
       say "cancelling jobs: $jobs"
       # shellcheck disable=SC2086
       scancel $jobs 2>/dev/null || true
+      # shellcheck disable=SC2016  # run by bash -c at each try
       wait_for "$TIMEOUT" "the jobs to end" bash -c '[ -z "$(squeue -h -o %i)" ]' || true
     fi
   fi
   local d c m
   d="$(slurmd_pid)"; c="$(ctld_pid)"; m="$(munged_pid)"
   # all at once (each takes a second or two to exit), then wait for each with the deadline
+  # shellcheck disable=SC2086  # each may be empty
   kill -TERM $d $c $m 2>/dev/null || true
   stop_pid slurmd "$d"
   stop_pid slurmctld "$c"
@@ -320,8 +337,9 @@ stop() {
   for pid in $left; do
     tree="$(descendants "$pid" | tr '\n' ' ')"
     say "ending leftover $(cat "/proc/$pid/comm" 2>/dev/null) ($pid) and its processes ${tree:-(none)}"
-    # shellcheck disable=SC2086
+    # shellcheck disable=SC2086  # a list of pids
     kill -TERM $tree 2>/dev/null || true
+    # shellcheck disable=SC2086
     wait_for 5 "the processes of $pid to exit" eval "! any_alive $tree" \
       || kill -KILL $tree 2>/dev/null || true
     kill -KILL "$pid" 2>/dev/null || true

@@ -14,7 +14,7 @@ here="$(cd "$(dirname "$0")" && pwd)"
 export SLURM_LOCAL_DIR="${SLURM_LOCAL_DIR:-/tmp/pcdp-slurm-selftest}"
 export SLURM_LOCAL_PORT="${SLURM_LOCAL_PORT:-6827}"
 export SLURM_WAIT_TIMEOUT="${SLURM_WAIT_TIMEOUT:-120}"
-# shellcheck source=slurm_lib.sh
+# shellcheck source=scripts/slurm_lib.sh
 . "$here/slurm_lib.sh"
 
 now() { date +%s.%N; }
