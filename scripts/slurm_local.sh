@@ -4,7 +4,10 @@
 #   scripts/slurm_local.sh stop     cancel the jobs, stop the daemons, end what they left running
 #   scripts/slurm_local.sh status   print each daemon's pid and the node's state (exit 1 when down)
 #   scripts/slurm_local.sh env      print the `export SLURM_CONF=...` line the clients need
-# All idempotent: start when started and stop when stopped do nothing and succeed.
+# All idempotent: start when started and stop when stopped do nothing and succeed; start after a
+# daemon died starts just that one. Job state (ids, finished jobs) survives stop/start; delete the
+# folder for a fresh cluster. Root (as in CI) or not: as root munged runs as the munge user and jobs
+# may run as any user; as another user all daemons and jobs run as that user (tested as nobody).
 #
 # What it runs: the Debian 12 packages slurmctld, slurmd, slurm-client and munge (Slurm 22.05),
 # installed with apt-get when missing (so the project's normal build, scripts/setup.sh, needs no
@@ -13,12 +16,14 @@
 #   SLURM_LOCAL_DIR (default /tmp/pcdp-slurm):
 #     slurm.conf          the configuration (rewritten at each start)
 #     munge/              munge.key, munged's socket, pid, seed and log (owned by the munge user)
+#     .lock               flock serializing start and stop
 #     spool/ctld, spool/d StateSaveLocation and SlurmdSpoolDir
 #     log/                slurmctld.log, slurmd.log, jobcomp.txt (one line per finished job)
 #     run/                slurmctld.pid, slurmd.pid
 # Clients (sbatch, squeue, scontrol) find the cluster through SLURM_CONF=$SLURM_LOCAL_DIR/slurm.conf;
 # `start` and `env` print that line. Other settings:
-#   SLURM_LOCAL_PORT     slurmctld's port (default 6817); slurmd uses the next one
+#   SLURM_LOCAL_PORT     slurmctld's port (default 6817); slurmd uses the next one. Two clusters on
+#                        one machine need different folders and ports; start refuses a port in use.
 #   SLURM_LOCAL_CPUS     CPUs the node declares (default 8, more than this machine's cores)
 #   SLURM_LOCAL_NODE     the node's name (default pcdp-node1)
 #   SLURM_LOCAL_TIMEOUT  seconds each wait may take (default 60)
