@@ -4,6 +4,7 @@
 #include <random>
 
 #include "pcdp/models/calibration.hpp"
+#include "pcdp/io/range_samples.hpp"
 #include "pcdp/core/errors.hpp"
 #include "pcdp/core/pass.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
@@ -50,14 +51,14 @@ TEST(CalibrateRange, DegenerateInputGivesAClearError) {
   test::write_text(dir + "/c.csv", "distance,range\n1,1\n");
   std::vector<double> y, z;
   try {
-    read_range_samples_csv(dir + "/c.csv", y, z);
+    io::read_range_samples_csv(dir + "/c.csv", y, z);
     FAIL();
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("must name the columns 'true' and 'measured'"), std::string::npos);
   }
   test::write_text(dir + "/c.csv", "true,measured\n1,1\n2,abc\n");
   try {
-    read_range_samples_csv(dir + "/c.csv", y, z);
+    io::read_range_samples_csv(dir + "/c.csv", y, z);
     FAIL();
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("c.csv:3: column 'measured': 'abc' is not a finite number"), std::string::npos);
