@@ -166,7 +166,7 @@ bool ConsistencyEvidence::other_hit_near(std::uint64_t voxel, std::uint64_t bit)
 
 std::vector<ConsistencyEvidence::Chunk> ConsistencyEvidence::chunks() const {
   // Pieces of a few thousand rays: passes differ in cost, and two threads given one pass each
-  // waited on the slower (1.4x instead of 2x on four passes).
+  // wait on the slower.
   constexpr std::size_t kRays = 4096;
   std::vector<Chunk> out;
   for (std::size_t k = 0; k < passes_.size(); ++k)

@@ -87,7 +87,7 @@ bool clip(const Segment& s, const double lo[3], const double hi[3], double& t0, 
 // A 3-D DDA over a box of n[0] x n[1] x n[2] cells of edge `cell` with its low corner at `lo`:
 // f(x, y, z, t_in, t_out) for every cell the part t0 <= t < t1 of the segment (inside the box)
 // passes through, in order. The state is kept in scalars, not arrays indexed by the stepping
-// axis (every step would wait on a store: 1.4x slower in the voxel walk this replaced).
+// axis (with those, every step waits on a store).
 template <class F>
 void walk_cells(const Segment& s, double t0, double t1, const double lo[3], double cell, const std::int64_t n[3], F&& f) {
   std::int64_t c[3], step[3];
@@ -473,7 +473,7 @@ void ConsistencyEvidence::walk_rays(unsigned threads) {
   const Centres centres(lonely_, res, passes_.empty() ? zero : passes_.front().anchor);
   // Lines whose rays make no fan walk them over a coarse grid of the lonely voxels' cells, built
   // the first time a line needs it. Cells of 4 voxels: on the benchmark's eight passes and on
-  // Kurt3D, 2 and 8 were slower (fewer exact tests but more cell steps, or the reverse).
+  // Kurt3D, 2 and 8 are slower (fewer exact tests but more cell steps, or the reverse).
   std::once_flag cells_built;
   std::optional<LonelyCells> cells;
   // A fan whose rays stray further than this from its plane would pass most voxels' slab test.
