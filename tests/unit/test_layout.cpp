@@ -49,7 +49,7 @@ constexpr std::size_t kMaxLines = 650;
 }  // namespace
 
 TEST(Layout, NoSourceAtTheRoot) {
-  for (const fs::path dir : {fs::path("lib/src"), fs::path("lib/include/pcdp")}) {
+  for (const char* dir : {"lib/src", "lib/include/pcdp"}) {
     ASSERT_TRUE(fs::is_directory(kRoot / dir)) << dir;
     for (const auto& e : fs::directory_iterator(kRoot / dir))
       EXPECT_FALSE(e.is_regular_file() && is_source(e.path()))
