@@ -194,8 +194,8 @@ TEST(OptionsBinder, RulesAreEnforcedNamingWhereBlockKeysValuesAndRule) {
     try {
       load_pipeline_from_string("input: {scans: x.pcd}\nsensor: {range_min: 40}\nstages: [{type: register}]\n",
                                 "p.yaml", "/", LoadOptions{{}, "", false});
-    } catch (const ConfigError& e) {
-      return std::string(e.what());
+    } catch (const ConfigError& err) {
+      return std::string(err.what());
     }
     return std::string("(no error)");
   }();
