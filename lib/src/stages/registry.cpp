@@ -12,7 +12,8 @@
   X(reject_mixed_pixels)       \
   X(check_consistency)         \
   X(fuse_elevation)            \
-  X(fuse_octomap)
+  X(fuse_octomap)              \
+  /* one line per stage, above this one */
 
 namespace pcdp {
 
