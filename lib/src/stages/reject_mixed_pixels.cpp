@@ -430,7 +430,7 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
     // Lines follow each other in nod only within one sweep: where the nod reverses, the next line
     // folds back over the last ones, so each sweep is a sequence of its own. The reversal is read
     // from three consecutive lines only (the extreme line ends its sweep), so a streamed window
-    // of `stream_reach` lines on each side splits exactly where the whole pass does; a reversal
+    // of `reach()` lines on each side splits exactly where the whole pass does; a reversal
     // hidden in a plateau of equal encoder readings is not split.
     std::vector<std::size_t> sweep_begin{0};
     const auto nod_of = [&](std::size_t k) { return static_cast<double>(pass.nod[pass.line_begin[k]]); };
