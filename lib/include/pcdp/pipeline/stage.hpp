@@ -113,11 +113,11 @@ class Stage {
 };
 
 /// Exact, associative partials for folds whose steps do not commute bit for bit (floating-point
-/// sums, clamped updates, top-k lists): the partial that holds the run's first pass (Pass::index 0) keeps the
-/// folded state; any other keeps its passes' items, in pass order, until it is merged into one
-/// that holds the first pass. Folding in pass order then does exactly what folding pass by pass
-/// does, whatever the grouping; memory stays bounded when partials are merged in pass order (the
-/// pipeline does). `fold(State&, Item&&)` folds one pass's item.
+/// sums, clamped updates, top-k lists): the partial that holds the run's first pass (Pass::index
+/// 0) keeps the folded state; any other keeps its passes' items, in pass order, until it is merged
+/// into one that holds the first pass. Folding in pass order then does exactly what folding pass
+/// by pass does, whatever the grouping; memory stays bounded when partials are merged in pass
+/// order (the pipeline does). `fold(State&, Item&&)` folds one pass's item.
 template <class State, class Item>
 struct InOrderPartial : Partial {
   std::unique_ptr<State> state;  ///< set when the partial holds the first pass
