@@ -167,6 +167,40 @@ void check_what_was_kept(const PipelineConfig& cfg, const PoseTrack* poses, cons
   }
 }
 
+/// report.json lists every input and every other product with its size and SHA-256: the
+/// products as staged (complete, committed as they are), hashed on the run's threads.
+void digest_files(const PipelineConfig& cfg, io::StagedOutputs& out, RunSummary& sum) {
+  const detail::PhaseTimer digest(sum, "digest");
+  for (const auto& f : cfg.scans) sum.input_files.push_back({f, "scan", 0, ""});
+  if (!cfg.poses.empty()) sum.input_files.push_back({cfg.poses, "poses", 0, ""});
+  std::vector<std::string> names = out.names();
+  std::sort(names.begin(), names.end());
+  for (const auto& n : names)
+    if (n != "report.json") sum.output_files.push_back({n, "", 0, ""});
+  const std::size_t ni = sum.input_files.size();
+  detail::parallel_for(ni + sum.output_files.size(), sum.threads, [&](std::size_t k) {
+    const bool input = k < ni;
+    RunSummary::FileRecord& r = input ? sum.input_files[k] : sum.output_files[k - ni];
+    io::FileDigest d;
+    const std::string path = input ? r.file : (std::filesystem::path(out.staging_dir()) / r.file).string();
+    if (const int err = io::digest_file(path, d)) {
+      if (!input && err == ENOENT) {  // a name staged and never written is no product
+        r.sha256.clear();
+        return;
+      }
+      if (input)
+        throw InputError(r.file + ": cannot read it again to hash it for report.json (" + std::strerror(err) +
+                         "): was it changed or removed during the run?");
+      throw OutputError(out.final_path(r.file) + ": cannot read the staged product to hash it for report.json (" +
+                        std::strerror(err) + ")");
+    }
+    r.bytes = d.bytes;
+    r.sha256 = std::move(d.sha256);
+  });
+  sum.output_files.erase(std::remove_if(sum.output_files.begin(), sum.output_files.end(),
+                                        [](const RunSummary::FileRecord& r) { return r.sha256.empty(); }),
+                         sum.output_files.end());
+}
 }  // namespace
 
 RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
@@ -247,40 +281,7 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
                            " m from the map origin; returns.pcd, cloud.pcd and map.bt (float32) keep 1 mm only within " +
                            format_value(kFloat32MillimetreReach) + " m of it: split the run");
   sum.outputs = out.final_paths();
-  {
-    // report.json lists every input and every other product with its size and SHA-256: the
-    // products as staged (complete, committed as they are), hashed on the run's threads.
-    const detail::PhaseTimer digest(sum, "digest");
-    for (const auto& f : cfg.scans) sum.input_files.push_back({f, "scan", 0, ""});
-    if (!cfg.poses.empty()) sum.input_files.push_back({cfg.poses, "poses", 0, ""});
-    std::vector<std::string> names = out.names();
-    std::sort(names.begin(), names.end());
-    for (const auto& n : names)
-      if (n != "report.json") sum.output_files.push_back({n, "", 0, ""});
-    const std::size_t ni = sum.input_files.size();
-    detail::parallel_for(ni + sum.output_files.size(), sum.threads, [&](std::size_t k) {
-      const bool input = k < ni;
-      RunSummary::FileRecord& r = input ? sum.input_files[k] : sum.output_files[k - ni];
-      io::FileDigest d;
-      const std::string path = input ? r.file : (std::filesystem::path(out.staging_dir()) / r.file).string();
-      if (const int err = io::digest_file(path, d)) {
-        if (!input && err == ENOENT) {  // a name staged and never written is no product
-          r.sha256.clear();
-          return;
-        }
-        if (input)
-          throw InputError(r.file + ": cannot read it again to hash it for report.json (" + std::strerror(err) +
-                           "): was it changed or removed during the run?");
-        throw OutputError(out.final_path(r.file) + ": cannot read the staged product to hash it for report.json (" +
-                          std::strerror(err) + ")");
-      }
-      r.bytes = d.bytes;
-      r.sha256 = std::move(d.sha256);
-    });
-    sum.output_files.erase(std::remove_if(sum.output_files.begin(), sum.output_files.end(),
-                                          [](const RunSummary::FileRecord& r) { return r.sha256.empty(); }),
-                           sum.output_files.end());
-  }
+  digest_files(cfg, out, sum);
   sum.seconds = seconds_since(t_run);
   {
     const std::string js = report_json(cfg, sum);
