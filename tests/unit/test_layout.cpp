@@ -107,6 +107,7 @@ TEST(Layout, DocsNameOnlyPathsThatExist) {
     std::size_t n = 0;
     for (std::string line; std::getline(in, line);) {
       ++n;
+      if (line.find("(new file)") != std::string::npos) continue;  // a file the text tells you to create
       for (const char* prefix : {"lib/", "tests/", "docs/"}) {
         for (std::size_t at = line.find(prefix); at != std::string::npos; at = line.find(prefix, at + 1)) {
           if (at > 0 && path_char(line[at - 1])) continue;  // inside a longer path or word

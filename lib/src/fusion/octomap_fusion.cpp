@@ -91,8 +91,8 @@ RangeCells cast_range(const octomap::OcTree& tree, const Pass& pass, const OctoM
 }
 }  // namespace
 
-PassRays cast_pass(const octomap::OcTree& tree, const Pass& pass, const OctoMapParams& p, WorkShare& share) {
-  // The returns in consecutive ranges, cast as tasks that idle threads may share (work_share.hpp),
+PassRays cast_pass(const octomap::OcTree& tree, const Pass& pass, const OctoMapParams& p, const RunTasks& share) {
+  // The returns in consecutive ranges, cast as tasks that idle threads may share (core/tasks.hpp),
   // then merged. A pass's cells are the union of its ranges' cells, occupied winning over free
   // in the union; and the blocks, taken range by range, each range's in the order it first touched
   // them, come in the order one cast of the whole pass first touches them. So the lists do not
@@ -101,7 +101,7 @@ PassRays cast_pass(const octomap::OcTree& tree, const Pass& pass, const OctoMapP
   const std::size_t ranges = std::max<std::size_t>(1, std::min(kCastRanges, n / kCastRangeMin));
   std::vector<RangeCells> part(ranges);
   std::vector<std::uint64_t> rays(ranges, 0);
-  share.run(ranges, [&](std::size_t r) { part[r] = cast_range(tree, pass, p, n * r / ranges, n * (r + 1) / ranges, rays[r]); });
+  share(ranges, [&](std::size_t r) { part[r] = cast_range(tree, pass, p, n * r / ranges, n * (r + 1) / ranges, rays[r]); });
   PassRays out;
   for (std::uint64_t r : rays) out.rays += r;
   // Each block's free-only cells, then its occupied ones, in cell order.

@@ -85,7 +85,7 @@ std::string band_name(int b) {
 using detail::rename_into_place;
 }  // namespace
 
-std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string& path, int deflate_level, WorkShare& share,
+std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string& path, int deflate_level, const RunTasks& share,
                                    const std::string& crs, const std::string& state_path_in) {
   if (deflate_level < 1 || deflate_level > 12)
     throw std::invalid_argument("DEFLATE level " + std::to_string(deflate_level) + " is outside 1 .. 12");

@@ -107,12 +107,12 @@ void write_file(const std::string& path, const FloatTiff& t, const Layout& L, in
 }  // namespace
 
 void write_float_tiff(const std::string& path, const FloatTiff& t, int level, const PlaneFill& fill,
-                      WorkShare& share) {
+                      const RunTasks& share) {
   if (t.tile != 0) throw std::invalid_argument(path + ": whole planes are written as strips; tiles take a BlockFill");
   const Layout L(path, t);
   // Compressed strips, band after band (PlanarConfiguration 2 orders them so).
   std::vector<std::vector<std::uint8_t>> out(L.nb * L.blocks);
-  share.run(L.first.size() - 1, [&](std::size_t g) {
+  share(L.first.size() - 1, [&](std::size_t g) {
     Compressor compress(path, level, t.libtiff_codec);
     std::vector<std::vector<float>> planes(static_cast<std::size_t>(L.first[g + 1] - L.first[g]), std::vector<float>(L.w * L.h));
     fill(L.first[g], planes);
@@ -126,10 +126,10 @@ void write_float_tiff(const std::string& path, const FloatTiff& t, int level, co
 }
 
 void write_float_tiff_blocks(const std::string& path, const FloatTiff& t, int level, const BlockFill& fill,
-                             WorkShare& share) {
+                             const RunTasks& share) {
   const Layout L(path, t);
   std::vector<std::vector<std::uint8_t>> out(L.nb * L.blocks);
-  share.run(L.first.size() - 1, [&](std::size_t g) {
+  share(L.first.size() - 1, [&](std::size_t g) {
     Compressor compress(path, level, t.libtiff_codec);
     std::vector<std::vector<float>> planes(static_cast<std::size_t>(L.first[g + 1] - L.first[g]));
     for (std::size_t s = 0; s < L.blocks; ++s) {

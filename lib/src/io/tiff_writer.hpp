@@ -1,7 +1,7 @@
 // A writer of float32 GeoTIFFs as GDAL writes them (planar, DEFLATE strips or sparse tiles, GDAL's
 // metadata and nodata tags, GeoKeys), through libtiff (the directory, BigTIFF, the file) and
 // libgeotiff (the GeoKey directory). The strips and tiles are compressed with libdeflate as tasks a
-// WorkShare may spread over threads, and handed to libtiff already compressed
+// RunTasks may spread over threads, and handed to libtiff already compressed
 // (TIFFWriteRawStrip/TIFFWriteRawTile): libtiff's own codec compresses each block as it is
 // written, on the writing thread (docs/performance.md has the comparison and the command).
 // GDAL reads these files (gdalinfo, QGIS); `merge` reads them with tiff_reader.hpp.
@@ -13,7 +13,7 @@
 #include <utility>
 #include <vector>
 
-#include "pcdp/pipeline/work_share.hpp"
+#include "pcdp/core/tasks.hpp"
 #include "tiff_format.hpp"
 
 namespace pcdp::io::detail {
@@ -33,7 +33,7 @@ struct FloatTiff {
   /// The GeoKeys (tiff_writer.hpp's caller decides them: geotiff_crs.hpp); model 0: none written.
   GeoKeys geokeys;
   /// Compress with libtiff's own DEFLATE codec at `level` as the blocks are written (one thread),
-  /// not with libdeflate in the WorkShare's tasks: only for the comparison in docs/performance.md.
+  /// not with libdeflate in the tasks handed to RunTasks: only for the comparison in docs/performance.md.
   bool libtiff_codec = false;
 };
 
@@ -46,7 +46,7 @@ using PlaneFill = std::function<void(int first, std::vector<std::vector<float>>&
 /// group's planes per running task are in memory, plus the compressed strips. The bytes do not
 /// depend on which thread ran which task. Throws OutputError (libtiff's message) or std::runtime_error naming the path.
 void write_float_tiff(const std::string& path, const FloatTiff& t, int level, const PlaneFill& fill,
-                      WorkShare& share);
+                      const RunTasks& share);
 
 /// A block of the raster: a strip (the raster's width, rows_per_strip rows, the last cut to the
 /// rows left) or a tile (tile x tile pixels, stored whole: the pixels past the raster's right or
@@ -67,7 +67,7 @@ using BlockFill = std::function<bool(int first, const Block& block, std::vector<
 /// whatever the raster's size. Strips (t.tile == 0) are the same bytes write_float_tiff writes for
 /// the same values.
 void write_float_tiff_blocks(const std::string& path, const FloatTiff& t, int level, const BlockFill& fill,
-                             WorkShare& share);
+                             const RunTasks& share);
 
 /// The GDAL_METADATA XML for dataset items (name, value) and band descriptions (band 1 first;
 /// empty ones left out), as GDAL writes it: values are escaped twice, because GDAL escapes a

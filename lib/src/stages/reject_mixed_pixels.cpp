@@ -435,7 +435,7 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
     // Lines follow each other in nod only within one sweep: where the nod reverses, the next line
     // folds back over the last ones, so each sweep is a sequence of its own. The reversal is read
     // from three consecutive lines only (the extreme line ends its sweep), so a streamed window
-    // of `stream_reach` lines on each side splits exactly where the whole pass does; a reversal
+    // of `reach()` lines on each side splits exactly where the whole pass does; a reversal
     // hidden in a plateau of equal encoder readings is not split.
     std::vector<std::size_t> sweep_begin{0};
     const auto nod_of = [&](std::size_t k) { return static_cast<double>(pass.nod[pass.line_begin[k]]); };
@@ -526,14 +526,14 @@ namespace {
 class RejectMixedPixelsStage final : public Stage {
  public:
   RejectMixedPixelsStage(MixedPixelParams p, const RunContext& ctx) : params_(p), sensor_(ctx.config->sensor) {}
-  bool concurrent() const override { return true; }
+  StageKind kind() const override { return StageKind::kLabeller; }
   // Across lines it looks `window` lines (kObjectReach for a spike's object) each way, plus one
   // to read a nod reversal at the last of them.
-  int stream_reach() const override {
+  int reach() const override {
     if (!params_.across_lines) return 0;
     return std::max(params_.window, params_.spikes ? static_cast<int>(kObjectReach) : 0) + 1;
   }
-  void process(Pass& pass, StageReport&) override { reject_mixed_pixels(pass, params_, sensor_); }
+  void label(Pass& pass, StageReport&) const override { reject_mixed_pixels(pass, params_, sensor_); }
 
  private:
   MixedPixelParams params_;

@@ -80,7 +80,7 @@ TEST(GeoTiffCrs, EpsgCodesAndWktAreCheckedAgainstProj) {
 TEST(GeoTiffCrs, GdalReadsTheEpsgCodeAndStatisticsOfTheSixBandsWithoutAnError) {
   const std::string dir = test::fresh_dir();
   const ElevationGrid g = small_grid();
-  io::write_elevation_geotiff(g, dir + "/e.tif", 1, WorkShare::serial(), "EPSG:32632");
+  io::write_elevation_geotiff(g, dir + "/e.tif", 1, run_in_order, "EPSG:32632");
   io::write_elevation_geotiff(g, dir + "/plain.tif");
   GDALAllRegister();
   for (const std::string& name : {std::string("e.tif"), std::string("e.state.tif")}) {

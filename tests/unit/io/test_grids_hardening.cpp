@@ -123,7 +123,7 @@ void write_grid(const std::string& path, const GridSpec& s) {
         for (std::size_t j = 0; j < planes.size(); ++j)
           for (std::size_t c = 0; c < 2; ++c) planes[j][c] = v[2 * (static_cast<std::size_t>(first) + j) + c];
       },
-      WorkShare::serial());
+      run_in_order);
 }
 }  // namespace
 
@@ -210,7 +210,7 @@ TEST(GridsHardening, StripsWrittenBlockByBlockAreTheWholePlaneBytes) {
           for (std::size_t i = 0; i < planes[j].size(); ++i)
             planes[j][i] = value(first + static_cast<int>(j), static_cast<int>(i % 13), static_cast<int>(i / 13));
       },
-      WorkShare::serial());
+      run_in_order);
   io::detail::write_float_tiff_blocks(
       dir + "/blocks.tif", t, 1,
       [&](int first, const io::detail::Block& b, std::vector<std::vector<float>>& planes) {
@@ -220,7 +220,7 @@ TEST(GridsHardening, StripsWrittenBlockByBlockAreTheWholePlaneBytes) {
                                  b.y0 + static_cast<int>(i) / b.width);
         return true;
       },
-      WorkShare::serial());
+      run_in_order);
   EXPECT_EQ(bytes_of(dir + "/planes.tif"), bytes_of(dir + "/blocks.tif"));
 }
 

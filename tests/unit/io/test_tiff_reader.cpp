@@ -126,7 +126,7 @@ TEST(TiffReader, ReadsOurOwnClassicAndBigTiffBitForBit) {
     t.bigtiff = big;
     t.groups = {2, 3};
     const std::string path = dir + (big ? "/big.tif" : "/classic.tif");
-    io::detail::write_float_tiff(path, t, 6, fill, WorkShare::serial());
+    io::detail::write_float_tiff(path, t, 6, fill, run_in_order);
     const FloatTiffData d = io::detail::read_float_tiff(path);
     expect_values(d, 5, 9);
     EXPECT_TRUE(d.georeferenced);
@@ -305,7 +305,7 @@ TEST(TiffReader, RejectsWhatItCannotReadNamingTheFileAndTheRule) {
   t.height = 9;
   t.bands = 2;
   t.rows_per_strip = 9;
-  io::detail::write_float_tiff(dir + "/ok.tif", t, 1, fill, WorkShare::serial());
+  io::detail::write_float_tiff(dir + "/ok.tif", t, 1, fill, run_in_order);
   const std::string ok = bytes_of(dir + "/ok.tif");
   ASSERT_EQ(error_of(dir + "/ok.tif"), "");
   write_bytes(dir + "/short.tif", ok.substr(0, ok.size() - 40));

@@ -6,8 +6,9 @@
 // filters miss.
 //
 // How the evidence is gathered (the definition above is unchanged; only where it is looked for):
-//  1. prepass, one pass at a time: the voxels the pass's kept returns end in (its hits), and its
-//     rays, kept compactly (32 bytes a ray) until every pass has been seen;
+//  1. the stage's evidence phase (collect, merge), one pass at a time: the voxels the pass's kept
+//     returns end in (its hits), and its rays, kept compactly (32 bytes a ray) until every pass
+//     has been seen;
 //  2. finalize, once: a return with another pass's hit within hit_radius voxels is consistent
 //     whatever crossed it, so free-space evidence is needed only at the voxels of the other,
 //     "lonely" returns (a few per cent of them). The rays of each scan line are then taken

@@ -18,8 +18,8 @@
 
 #include <octomap/OcTree.h>
 
+#include "pcdp/core/tasks.hpp"
 #include "pcdp/fusion/detail/voxel_blocks.hpp"
-#include "pcdp/pipeline/work_share.hpp"
 
 #include <cstdint>
 
@@ -104,10 +104,10 @@ bool walk_ray_keys(const octomap::OcTree& tree, const octomap::point3d& o, const
 
 /// Casts the kept returns of a registered pass (the costly part; reads only the tree's key
 /// geometry, so it can run while another thread updates a tree of the same resolution). The
-/// returns are cast in ranges handed to `share` (idle threads may take some); the result is the
-/// same whoever casts them.
+/// returns are cast in ranges handed to `run` as tasks (the pipeline's idle threads may take
+/// some); the result is the same whoever casts them.
 PassRays cast_pass(const octomap::OcTree& tree, const Pass& pass, const OctoMapParams& p,
-                   WorkShare& share = WorkShare::serial());
+                   const RunTasks& run = run_in_order);
 
 /// Applies one pass's cells to the tree: free first, then occupied, then the inner nodes.
 void apply_rays(octomap::OcTree& tree, const PassRays& rays);

@@ -22,19 +22,20 @@
 #include <vector>
 
 #include "pcdp/fusion/elevation.hpp"
-#include "pcdp/pipeline/work_share.hpp"
+#include "pcdp/core/tasks.hpp"
 
 namespace pcdp::io {
 
-/// Each group of bands is filled and compressed a strip or tile at a time as a task of `share`,
-/// so threads with nothing else to do help; the file's bytes do not depend on how many did.
+/// Each group of bands is filled and compressed a strip or tile at a time as a task handed to
+/// `run` (the pipeline's threads with nothing else to do help); the file's bytes do not depend on
+/// who ran them.
 /// Returns the number of cells with a surface (the pixels of band 1 that are not nodata). Throws
 /// InputError naming elevation.tif and the size when the raster spans more than 65,536 tiles of
 /// 256 x 256 cells (4,294,967,296 cells), before anything is allocated.
 /// `crs`: "" (no GeoKeys) or as normalize_crs() returns it. `state_path`: where the merge state
 /// goes; empty: elevation_state_path(path).
 std::size_t write_elevation_geotiff(const ElevationGrid& grid, const std::string& path, int deflate_level = 1,
-                                   WorkShare& share = WorkShare::serial(), const std::string& crs = "",
+                                   const RunTasks& run = run_in_order, const std::string& crs = "",
                                    const std::string& state_path = "");
 
 /// The merge state's file of the grid `path`: "X.tif" -> "X.state.tif" (else path + ".state.tif").

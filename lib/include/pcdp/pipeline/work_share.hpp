@@ -12,6 +12,8 @@
 #include <functional>
 #include <memory>
 
+#include "pcdp/core/tasks.hpp"
+
 namespace pcdp {
 
 class WorkShare {
@@ -28,6 +30,10 @@ class WorkShare {
   /// thread that finishes a task takes the next); every task runs even when one throws. For
   /// callers outside a pipeline run, e.g. writing a merged elevation grid with threads.
   static std::unique_ptr<WorkShare> threads(unsigned threads);
+  /// The tasks of a format or a model (pcdp/core/tasks.hpp) run through this WorkShare.
+  operator RunTasks() {
+    return [this](std::size_t n, const std::function<void(std::size_t)>& task) { run(n, task); };
+  }
 };
 
 }  // namespace pcdp
