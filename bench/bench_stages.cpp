@@ -7,6 +7,7 @@
 
 #include <chrono>
 
+#include "pcdp/pipeline/work_share.hpp"
 #include "pcdp/fusion/elevation.hpp"
 #include "pcdp/fusion/octomap_fusion.hpp"
 #include "pcdp/core/pass.hpp"
@@ -114,7 +115,7 @@ static void BM_CheckConsistency(benchmark::State& state) {
     ConsistencyEvidence ev{ConsistencyParams{}};
     for (const Pass& p : work) ev.add_pass(p);
     const auto t1 = std::chrono::steady_clock::now();
-    ev.finalize(static_cast<unsigned>(state.range(0)));
+    ev.finalize(*WorkShare::threads(static_cast<unsigned>(state.range(0))));
     const auto t2 = std::chrono::steady_clock::now();
     for (Pass& p : work) benchmark::DoNotOptimize(ev.label(p));
     const auto t3 = std::chrono::steady_clock::now();

@@ -80,6 +80,29 @@ TEST(Layout, CoreAndModelsIncludeNoIoPipelineOrImport) {
   EXPECT_GT(files, 10u);  // the folders were found
 }
 
+TEST(Layout, FormatsAndEnginesTakeNoScheduler) {
+  // io/, import/ and fusion/ hand out independent tasks through core/tasks.hpp's RunTasks; only
+  // pipeline/ (and the stages' glue) know threads, WorkShare and the scheduler.
+  const std::vector<std::string> banned = {"pcdp/pipeline/", "\"pipeline/"};
+  std::size_t files = 0;
+  for (const char* dir : {"lib/include/pcdp/io", "lib/include/pcdp/import", "lib/include/pcdp/fusion", "lib/src/io",
+                          "lib/src/import", "lib/src/fusion"}) {
+    for (const std::string& f : sources_under(dir)) {
+      ++files;
+      std::istringstream in(read_all(kRoot / f));
+      std::size_t n = 0;
+      for (std::string line; std::getline(in, line);) {
+        ++n;
+        if (line.rfind("#include", 0) != 0) continue;
+        for (const std::string& b : banned)
+          EXPECT_EQ(line.find(b), std::string::npos)
+              << f << ":" << n << ": " << line << ": formats and fusion engines take no scheduler (docs/architecture.md)";
+      }
+    }
+  }
+  EXPECT_GT(files, 20u);  // the folders were found
+}
+
 TEST(Layout, NoLibrarySourceOverItsLimit) {
   std::size_t files = 0;
   for (const std::string& f : sources_under("lib")) {

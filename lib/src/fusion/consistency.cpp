@@ -11,7 +11,6 @@
 #include <stdexcept>
 
 #include "fusion/ifloor.hpp"
-#include "pipeline/ordered_parallel.hpp"
 #include "pcdp/core/errors.hpp"
 #include "pcdp/core/georef.hpp"
 #include "pcdp/core/pass.hpp"
@@ -175,7 +174,7 @@ std::vector<ConsistencyEvidence::Chunk> ConsistencyEvidence::chunks() const {
   return out;
 }
 
-void ConsistencyEvidence::find_lonely(unsigned threads) {
+void ConsistencyEvidence::find_lonely(const RunTasks& run) {
   struct Found {
     std::vector<Lonely> voxels;       // one per lonely return
     std::vector<std::uint32_t> rays;  // its position among the pass's rays
@@ -189,7 +188,7 @@ void ConsistencyEvidence::find_lonely(unsigned threads) {
   const std::vector<Chunk> work = chunks();
   // The pieces' results are small (the lonely returns only): all are kept, then merged in order.
   std::vector<Found> found(work.size());
-  detail::parallel_for(work.size(), threads, [&](std::size_t w) {
+  run(work.size(), [&](std::size_t w) {
     Found& f = found[w];
     const PassRays& pr = passes_[work[w].pass];
     std::uint64_t last = ~0ull;
@@ -229,10 +228,10 @@ void ConsistencyEvidence::find_lonely(unsigned threads) {
   stats_.lonely_voxels = lonely_.size();
 }
 
-void ConsistencyEvidence::finalize(unsigned threads) {
+void ConsistencyEvidence::finalize(const RunTasks& run) {
   if (finalized_) return;
-  find_lonely(threads);
-  walk_rays(threads);
+  find_lonely(run);
+  walk_rays(run);
   passes_.clear();
   passes_.shrink_to_fit();
   hits_ = BlockGrid<HitBlock>{0x61c88647u};  // label() needs only the lonely voxels

@@ -9,7 +9,6 @@
 
 #include "fusion/ifloor.hpp"
 #include "pcdp/fusion/consistency.hpp"
-#include "pipeline/ordered_parallel.hpp"
 
 namespace pcdp {
 
@@ -466,7 +465,7 @@ std::vector<ConsistencyEvidence::Chunk> ConsistencyEvidence::line_chunks() const
   return out;
 }
 
-void ConsistencyEvidence::walk_rays(unsigned threads) {
+void ConsistencyEvidence::walk_rays(const RunTasks& run) {
   const double res = p_.resolution;
   // The lonely voxels' centres for the fans' slab tests, relative to the first pass's anchor.
   const double zero[3] = {0.0, 0.0, 0.0};
@@ -486,7 +485,7 @@ void ConsistencyEvidence::walk_rays(unsigned threads) {
   };
   const std::vector<Chunk> work = line_chunks();
   std::vector<Crossed> crossed(work.size());  // small: the crossings only
-  detail::parallel_for(work.size(), threads, [&](std::size_t w) {
+  run(work.size(), [&](std::size_t w) {
     Crossed& out = crossed[w];
     const PassRays& pr = passes_[work[w].pass];
     std::vector<RayExtent> rays;

@@ -16,7 +16,6 @@
 
 #include "pcdp/core/errors.hpp"
 #include "pcdp/io/input_file.hpp"
-#include "pcdp/pipeline/options.hpp"
 #include "geotiff_crs.hpp"
 #include "tiff_reader.hpp"
 #include "tiff_writer.hpp"
@@ -297,9 +296,9 @@ class GridFile {
     // cells would otherwise land on another grid than the metadata's).
     for (int k = 0; k < 2; ++k)
       if (!(std::fabs(t.pixel_scale[k] - res_) <= 1e-9 * res_))
-        throw InputError(path_ + ": the GeoTIFF pixel scale (ModelPixelScaleTag) " + format_value(t.pixel_scale[0]) +
-                         " x " + format_value(t.pixel_scale[1]) + " m disagrees with GDAL metadata item PCDP_RESOLUTION = " +
-                         format_value(res_) + " m");
+        throw InputError(path_ + ": the GeoTIFF pixel scale (ModelPixelScaleTag) " + format_number(t.pixel_scale[0]) +
+                         " x " + format_number(t.pixel_scale[1]) + " m disagrees with GDAL metadata item PCDP_RESOLUTION = " +
+                         format_number(res_) + " m");
     // The raster's north-west corner, as GDAL's geotransform has it (pixel-is-area tie point).
     const double x0 = t.tiepoint[3] - t.tiepoint[0] * t.pixel_scale[0], y0 = t.tiepoint[4] + t.tiepoint[1] * t.pixel_scale[1];
     constexpr double kMaxIndex = 4.5e15;  // cell indices stay exact in a double, and far from overflow
@@ -343,12 +342,12 @@ class GridFile {
         const auto bad = [&](const std::string& rule) {
           throw InputError(path_ + ": cell (row " + std::to_string(row) + ", col " + std::to_string(col) + "): " + rule);
         };
-        const auto val = [&](int b) { return format_value(static_cast<double>(v[static_cast<std::size_t>(b)][i])); };
+        const auto val = [&](int b) { return format_number(static_cast<double>(v[static_cast<std::size_t>(b)][i])); };
         const auto whole = [&](int b, double lo, double hi) {
           const float x = v[static_cast<std::size_t>(b)][i];
           if (!(x >= lo && x <= hi) || x != std::floor(x))
             bad("band " + std::to_string(file_band(b)) + " (" + band_name(b) + ") = " + val(b) + " is not a whole number in " +
-                format_value(lo) + " .. " + format_value(hi));
+                format_number(lo) + " .. " + format_number(hi));
           return static_cast<double>(x);
         };
         if (std::isnan(v[2][i])) {  // unobserved: nodata in every band
@@ -393,7 +392,7 @@ class GridFile {
           c.bands[static_cast<std::size_t>(k)] = hb;
         }
         if (in_bands > c.count)
-          bad("the height bands hold " + format_value(in_bands) + " points, more than the cell's count " + val(2));
+          bad("the height bands hold " + format_number(in_bands) + " points, more than the cell's count " + val(2));
         f(ix0_ + col, iy1_ - row, c);
       }
     });
@@ -434,16 +433,16 @@ void merge_elevation_geotiff(ElevationGrid& grid, const std::string& path, const
   // The same tests as ElevationGrid::merge, before any cell is read: a mismatch leaves `grid` as it was.
   if (std::fabs(file.resolution() - grid.resolution()) > 1e-9 || std::fabs(file.band() - grid.band()) > 1e-9 ||
       file.min_support() != grid.min_support())
-    throw InputError(file.path() + ": resolution " + format_value(file.resolution()) + " m, band " + format_value(file.band()) +
+    throw InputError(file.path() + ": resolution " + format_number(file.resolution()) + " m, band " + format_number(file.band()) +
                      " m and min_support " + std::to_string(file.min_support()) + " differ from " + grid_name + "'s (" +
-                     format_value(grid.resolution()) + " m, " + format_value(grid.band()) + " m, " +
+                     format_number(grid.resolution()) + " m, " + format_number(grid.band()) + " m, " +
                      std::to_string(grid.min_support()) + "); grids merge only on the same grid");
   file.for_each_cell([&](std::int64_t ix, std::int64_t iy, const ElevationCell& c) {
     if (!grid.holds(ix, iy))
-      throw InputError(file.path() + ": its cell at (" + format_value(static_cast<double>(ix) * grid.resolution()) + ", " +
-                       format_value(static_cast<double>(iy) * grid.resolution()) + ") m lies more than 2^30 cells from " +
-                       grid_name + "'s (" + format_value(static_cast<double>(grid.key_origin_x()) * grid.resolution()) +
-                       ", " + format_value(static_cast<double>(grid.key_origin_y()) * grid.resolution()) +
+      throw InputError(file.path() + ": its cell at (" + format_number(static_cast<double>(ix) * grid.resolution()) + ", " +
+                       format_number(static_cast<double>(iy) * grid.resolution()) + ") m lies more than 2^30 cells from " +
+                       grid_name + "'s (" + format_number(static_cast<double>(grid.key_origin_x()) * grid.resolution()) +
+                       ", " + format_number(static_cast<double>(grid.key_origin_y()) * grid.resolution()) +
                        ") m: grids this far apart do not merge into one raster");
     // Counts are 32-bit: a sum past that would wrap (the passes and bands' counts are at most it).
     if (const ElevationCell* have = grid.find(ix, iy); have && std::uint64_t{have->count} + c.count > 4294967295u)

@@ -24,15 +24,6 @@ const char* option_type_name(OptionType t) {
   return "?";
 }
 
-namespace {
-std::string format_number(double v) {
-  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
-  std::ostringstream os;
-  os << std::setprecision(10) << v;
-  return os.str();
-}
-}  // namespace
-
 std::string format_value(const OptionValue& v) {
   if (std::holds_alternative<bool>(v)) return std::get<bool>(v) ? "true" : "false";
   if (std::holds_alternative<std::int64_t>(v)) return std::to_string(std::get<std::int64_t>(v));

@@ -179,7 +179,7 @@ void Scheduler::passes(const std::function<void(const Pass&)>& arrive, const std
       });
 }
 
-void Scheduler::products(OutputSink& sink, const std::vector<Extra>& extra) {
+void Scheduler::products(io::StagedOutputs& out, const std::vector<Extra>& extra) {
   for (std::size_t s = 0; s < stages_.size(); ++s) {
     if (kind(s) != StageKind::kAccumulator) continue;
     const auto t0 = std::chrono::steady_clock::now();
@@ -196,7 +196,7 @@ void Scheduler::products(OutputSink& sink, const std::vector<Extra>& extra) {
     for (const auto& f : w.files) {
       if (std::find(declared.begin(), declared.end(), f) == declared.end())
         throw std::logic_error("stage '" + cfg_.stages[s].name + "' writes " + f + ", which it did not declare");
-      staged[t].push_back(sink.staged_path(f));
+      staged[t].push_back(out.staged_path(f));
     }
   }
   // Every writer at once with threads: the longest (elevation.tif) beside the others; closing

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "pcdp/core/pass.hpp"
+#include "pcdp/io/atomic_file.hpp"
 #include "pcdp/pipeline/pipeline.hpp"
 #include "pcdp/pipeline/stage.hpp"
 
@@ -68,7 +69,7 @@ class Scheduler {
   /// A writer of the caller's, run beside the stages' product writers.
   using Extra = std::function<void()>;
   /// Phase 3. `sink` gives the staged paths (called on this thread only); `extra` run last.
-  void products(OutputSink& sink, const std::vector<Extra>& extra);
+  void products(io::StagedOutputs& out, const std::vector<Extra>& extra);
 
  private:
   struct Kept;

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "pipeline/ordered_parallel.hpp"
+#include "pcdp/pipeline/work_share.hpp"
 #include "pcdp/core/errors.hpp"
 #include "pcdp/core/georef.hpp"
 #include "pcdp/core/pass.hpp"
@@ -46,7 +47,7 @@ class CheckConsistencyStage final : public Stage {
   }
   std::vector<ProductWriter> finish(std::unique_ptr<Partial> all, StageReport& report, unsigned threads) override {
     evidence_ = Evidence::fold_all(all.get(), [this] { return fresh(); }, &fold);
-    evidence_->finalize(threads);
+    evidence_->finalize(*WorkShare::threads(threads));
     // What decided the labels: how many returns needed free-space evidence at all.
     const ConsistencyEvidence::Stats& s = evidence_->stats();
     report.metrics["lonely_returns"] = static_cast<double>(s.lonely_returns);

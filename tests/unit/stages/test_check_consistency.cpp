@@ -7,6 +7,7 @@
 #include <set>
 #include <stdexcept>
 
+#include "pcdp/pipeline/work_share.hpp"
 #include "pcdp/core/pass.hpp"
 #include "pcdp/stages/check_consistency.hpp"
 
@@ -337,7 +338,7 @@ TEST(CheckConsistency, TheThreadCountDoesNotChangeTheLabels) {
   for (unsigned threads : {1u, 2u}) {
     ConsistencyEvidence ev{ConsistencyParams{}};
     for (const Pass& p : passes) ev.add_pass(p);
-    ev.finalize(threads);
+    ev.finalize(*WorkShare::threads(threads));
     for (Pass p : passes) {
       ev.label(p);
       got[threads - 1].push_back(p.label);

@@ -39,4 +39,7 @@ std::string nearest_name(const std::string& word, const std::vector<std::string>
 /// " (did you mean 'x'?)" or "" — appended to "unknown ..." messages.
 std::string did_you_mean(const std::string& word, const std::vector<std::string>& candidates);
 
+/// A number as error messages and `describe` print it: up to 10 significant digits, "inf", "-inf".
+std::string format_number(double v);
+
 }  // namespace pcdp

@@ -24,6 +24,7 @@
 #include <map>
 #include <vector>
 
+#include "pcdp/core/tasks.hpp"
 #include "pcdp/fusion/detail/flat_map.hpp"
 #include "pcdp/fusion/detail/voxel_blocks.hpp"
 
@@ -71,8 +72,9 @@ class ConsistencyEvidence {
   /// collect + merge.
   void add_pass(const Pass& pass);
   /// After the last pass: finds the lonely returns and the passes whose rays crossed their voxels,
-  /// on up to `threads` threads (the result does not depend on it), then frees the rays.
-  void finalize(unsigned threads = 1);
+  /// its independent pieces handed to `run` (the result does not depend on who runs them), then
+  /// frees the rays.
+  void finalize(const RunTasks& run = run_in_order);
   /// Labels the contradicted kept returns of `pass`; returns how many. Needs finalize(). Meant
   /// for the passes as they were collected: it goes straight to the lonely returns finalize()
   /// found. A pass with another count of kept returns, or whose listed returns lie in other
@@ -115,8 +117,8 @@ class ConsistencyEvidence {
   std::vector<Chunk> chunks() const;
   std::vector<Chunk> line_chunks() const;
   bool other_hit_near(std::uint64_t voxel, std::uint64_t bit) const;
-  void find_lonely(unsigned threads);
-  void walk_rays(unsigned threads);
+  void find_lonely(const RunTasks& run);
+  void walk_rays(const RunTasks& run);
 
   /// A pass's lonely returns as finalize() found them, so that label() looks up only those:
   /// (position among the pass's rays, position in lonely_), in ray order.

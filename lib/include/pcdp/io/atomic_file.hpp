@@ -24,8 +24,6 @@
 #include <string>
 #include <vector>
 
-#include "pcdp/pipeline/stage.hpp"
-
 namespace pcdp::io {
 
 /// An exclusive advisory lock on `<parent>/.<name>.pcdp-lock` beside the output `target` (a folder
@@ -50,13 +48,13 @@ class OutputLock {
 void check_output_path(const std::string& key, const std::string& path);
 
 /// The products of a run, committed as a set into an output folder (see the top of this file).
-class StagedOutputs final : public OutputSink {
+class StagedOutputs final {
  public:
   /// Takes the folder's lock, removes leftovers of killed runs, creates the staging folder
   /// (and the output folder's missing parents, removed again if the run fails). Throws
   /// OutputError if `dir` exists and is not a folder, or cannot be written beside.
   explicit StagedOutputs(std::string dir);
-  ~StagedOutputs() override;  // removes the staging folder (and the parents it created) unless committed
+  ~StagedOutputs();  // removes the staging folder (and the parents it created) unless committed
   StagedOutputs(const StagedOutputs&) = delete;
   StagedOutputs& operator=(const StagedOutputs&) = delete;
 
@@ -64,7 +62,7 @@ class StagedOutputs final : public OutputSink {
   /// commit would have to replace it. Called before the work starts.
   void check_replaceable(const std::vector<std::string>& filenames) const;
   /// `<staging>/<filename>`; a name given twice is a bug (std::logic_error).
-  std::string staged_path(const std::string& filename) override;
+  std::string staged_path(const std::string& filename);
   /// Names this command owns in the folder (every product it may write, whether or not this run
   /// writes it): the old folder's entries of these names are not carried over to the new set, so a
   /// run that no longer writes map.ot (say) leaves no earlier map.ot beside its new map.bt.

@@ -35,14 +35,6 @@ struct StageReport {
   std::vector<std::string> warnings;
 };
 
-/// The output folder's staging (io::StagedOutputs): temporary paths, renamed on commit.
-class OutputSink {
- public:
-  virtual ~OutputSink() = default;
-  /// A temporary path for `filename` in the output folder; renamed to its final name on commit.
-  virtual std::string staged_path(const std::string& filename) = 0;
-};
-
 /// What an accumulator collects from passes (Stage::collect) and folds (Stage::merge): the stage's
 /// own type, downcast by the stage alone.
 struct Partial {
