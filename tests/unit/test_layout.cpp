@@ -58,12 +58,13 @@ TEST(Layout, NoSourceAtTheRoot) {
   }
 }
 
-TEST(Layout, CoreAndModelsIncludeNoIoPipelineOrImport) {
-  // Public headers are included as "pcdp/<folder>/x.hpp", internal ones as "<folder>/x.hpp".
-  const std::vector<std::string> banned = {"pcdp/io/", "pcdp/pipeline/", "pcdp/import/",
-                                           "\"io/",    "\"pipeline/",    "\"import/"};
+namespace {
+// Every #include line of the sources under `dirs` that names one of `banned`, as a failure;
+// returns how many files were read.
+std::size_t expect_no_includes(const std::vector<const char*>& dirs, const std::vector<std::string>& banned,
+                               const std::string& rule) {
   std::size_t files = 0;
-  for (const char* dir : {"lib/include/pcdp/core", "lib/include/pcdp/models", "lib/src/core", "lib/src/models"}) {
+  for (const char* dir : dirs) {
     for (const std::string& f : sources_under(dir)) {
       ++files;
       std::istringstream in(read_all(kRoot / f));
@@ -72,34 +73,30 @@ TEST(Layout, CoreAndModelsIncludeNoIoPipelineOrImport) {
         ++n;
         if (line.rfind("#include", 0) != 0) continue;
         for (const std::string& b : banned)
-          EXPECT_EQ(line.find(b), std::string::npos)
-              << f << ":" << n << ": " << line << ": core/ and models/ include no io, pipeline or import (docs/architecture.md)";
+          EXPECT_EQ(line.find(b), std::string::npos) << f << ":" << n << ": " << line << ": " << rule << " (docs/architecture.md)";
       }
     }
   }
+  return files;
+}
+}  // namespace
+
+TEST(Layout, CoreAndModelsIncludeNoIoPipelineOrImport) {
+  // Public headers are included as "pcdp/<folder>/x.hpp", internal ones as "<folder>/x.hpp".
+  const std::size_t files = expect_no_includes(
+      {"lib/include/pcdp/core", "lib/include/pcdp/models", "lib/src/core", "lib/src/models"},
+      {"pcdp/io/", "pcdp/pipeline/", "pcdp/import/", "\"io/", "\"pipeline/", "\"import/"},
+      "core/ and models/ include no io, pipeline or import");
   EXPECT_GT(files, 10u);  // the folders were found
 }
 
 TEST(Layout, FormatsAndEnginesTakeNoScheduler) {
   // io/, import/ and fusion/ hand out independent tasks through core/tasks.hpp's RunTasks; only
   // pipeline/ (and the stages' glue) know threads, WorkShare and the scheduler.
-  const std::vector<std::string> banned = {"pcdp/pipeline/", "\"pipeline/"};
-  std::size_t files = 0;
-  for (const char* dir : {"lib/include/pcdp/io", "lib/include/pcdp/import", "lib/include/pcdp/fusion", "lib/src/io",
-                          "lib/src/import", "lib/src/fusion"}) {
-    for (const std::string& f : sources_under(dir)) {
-      ++files;
-      std::istringstream in(read_all(kRoot / f));
-      std::size_t n = 0;
-      for (std::string line; std::getline(in, line);) {
-        ++n;
-        if (line.rfind("#include", 0) != 0) continue;
-        for (const std::string& b : banned)
-          EXPECT_EQ(line.find(b), std::string::npos)
-              << f << ":" << n << ": " << line << ": formats and fusion engines take no scheduler (docs/architecture.md)";
-      }
-    }
-  }
+  const std::size_t files = expect_no_includes({"lib/include/pcdp/io", "lib/include/pcdp/import", "lib/include/pcdp/fusion",
+                                                "lib/src/io", "lib/src/import", "lib/src/fusion"},
+                                               {"pcdp/pipeline/", "\"pipeline/"},
+                                               "formats and fusion engines take no scheduler");
   EXPECT_GT(files, 20u);  // the folders were found
 }
 

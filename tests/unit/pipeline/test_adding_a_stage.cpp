@@ -20,13 +20,6 @@
 using namespace pcdp;
 
 namespace {
-std::string slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 // The ```cpp blocks of a Markdown file, a blank line between two (other languages, ```c++
 // included, are not taken).
 std::string cpp_blocks(const std::string& md) {
@@ -70,8 +63,8 @@ std::vector<StageInfo> with_example() {
 }  // namespace
 
 TEST(AddingAStage, TheDocsCodeIsTheExampleStage) {
-  const std::string md = slurp(std::string(PCDP_SOURCE_DIR) + "/docs/adding_a_stage.md");
-  const std::string hpp = slurp(std::string(PCDP_SOURCE_DIR) + "/tests/unit/pipeline/example_stage.hpp");
+  const std::string md = test::read_text(std::string(PCDP_SOURCE_DIR) + "/docs/adding_a_stage.md");
+  const std::string hpp = test::read_text(std::string(PCDP_SOURCE_DIR) + "/tests/unit/pipeline/example_stage.hpp");
   ASSERT_FALSE(hpp.empty());
   EXPECT_EQ(cpp_blocks(md), hpp) << "docs/adding_a_stage.md's ```cpp blocks must be tests/unit/pipeline/example_stage.hpp";
 }
@@ -82,7 +75,7 @@ TEST(AddingAStage, TheExampleLabelsDimReturnsAndReportsThem) {
   Pipeline::prepare(sample_config(dir + "/without", false)).run();
   const RunSummary one = Pipeline::prepare(sample_config(dir + "/with1", true), with_example()).run({}, 1);
   const RunSummary two = Pipeline::prepare(sample_config(dir + "/with2", true), with_example()).run({}, 2);
-  EXPECT_EQ(slurp(dir + "/with1/returns.pcd"), slurp(dir + "/with2/returns.pcd"));
+  EXPECT_EQ(test::read_text(dir + "/with1/returns.pcd"), test::read_text(dir + "/with2/returns.pcd"));
 
   const io::PcdTable a = io::read_pcd(dir + "/without/returns.pcd"), b = io::read_pcd(dir + "/with1/returns.pcd");
   const auto la = test::column(a, "label"), lb = test::column(b, "label"), amp = test::column(b, "amplitude");
@@ -98,7 +91,9 @@ TEST(AddingAStage, TheExampleLabelsDimReturnsAndReportsThem) {
       EXPECT_LT(amp[i] * (r / 10.0) * (r / 10.0), 20.0 * 1.02) << "return " << i;
     } else if (lb[i] == kept) {
       const double r = range[i];
-      if (std::isfinite(amp[i])) EXPECT_GE(amp[i] * (r / 10.0) * (r / 10.0), 20.0 * 0.98) << "return " << i;
+      if (std::isfinite(amp[i])) {
+        EXPECT_GE(amp[i] * (r / 10.0) * (r / 10.0), 20.0 * 0.98) << "return " << i;
+      }
       near_floor += amp[i] * (r / 10.0) * (r / 10.0) < 40.0;
     }
   }

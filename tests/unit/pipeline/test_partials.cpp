@@ -20,13 +20,6 @@
 using namespace pcdp;
 
 namespace {
-std::string slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 struct Sample {
   PipelineConfig cfg = load_pipeline(std::string(PCDP_SOURCE_DIR) + "/pipelines/nodding_terrain.yaml");
   RunContext ctx;
@@ -98,7 +91,7 @@ std::map<std::string, std::string> products(const std::string& type, const Group
     std::vector<std::string> paths;
     for (const auto& f : w.files) paths.push_back(dir + "/" + f);
     w.write(paths, rep, WorkShare::serial());
-    for (std::size_t i = 0; i < paths.size(); ++i) out[w.files[i]] = slurp(paths[i]);
+    for (std::size_t i = 0; i < paths.size(); ++i) out[w.files[i]] = test::read_text(paths[i]);
   }
   return out;
 }
