@@ -33,7 +33,7 @@
 // surface minus the highest true top there, a phantom obstacle when > 0.3 m; below = lowest true
 // top minus surface (a top not seen, e.g. only the ground under a table).
 //
-// Usage: pcdp_mixed_sweep [--set tuning|heldout] [--index N]... [--json FILE] [--misses K]
+// Usage: pcdp_mixed_sweep [--set tuning|heldout] [--index N]... [--json FILE] [--misses K] [--rank recall|f1|valid]
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -231,6 +231,7 @@ struct Result {
   std::map<std::string, std::uint64_t> phantom_points;  ///< kept points > 0.3 m above their cell's true top, by truth label
   double elev_above = 0, elev_below = 0, seconds = 0;
   std::vector<Miss> misses;
+  std::map<std::string, std::uint64_t> false_alarms;  ///< valid returns labelled mixed_pixel, by what the footprint lit
   double recall() const { return mixed ? double(mixed_rejected) / double(mixed) : 1.0; }
   double valid_rate() const { return valid ? double(valid_rejected) / double(valid) : 0.0; }
   double occ_recall() const { return occlusion ? double(occlusion_rejected) / double(occlusion) : 1.0; }
@@ -317,7 +318,12 @@ Result run_setting(const SweepSetting& st) {
         ++res.valid;
         if (is_filter_label(l)) {
           ++res.valid_rejected;
-          res.valid_rejected_mixed += l == Label::kMixedPixel;
+          if (l == Label::kMixedPixel) {
+            ++res.valid_rejected_mixed;
+            const sim::BeamFootprint& f = sp.footprint[i];
+            const std::string near = st.kind_of(f.near_object), far = st.kind_of(f.far_object);
+            ++res.false_alarms[f.near_object == f.far_object ? near + " only" : near + " > " + far + " (within 4 cm)"];
+          }
         }
       } else if (t == Label::kOcclusion) {
         ++res.occlusion;
@@ -366,6 +372,7 @@ Result pool(const std::vector<Result>& rs) {
     p.seconds += r.seconds;
     p.misses.insert(p.misses.end(), r.misses.begin(), r.misses.end());
     for (const auto& [k, n] : r.phantom_points) p.phantom_points[k] += n;
+    for (const auto& [k, n] : r.false_alarms) p.false_alarms[k] += n;
   }
   return p;
 }
@@ -395,6 +402,16 @@ void print_misses(const Result& r) {
   if (!r.phantom_points.empty()) {
     std::printf("    kept points > 0.3 m above the true top:");
     for (const auto& [k, n] : r.phantom_points) std::printf(" %s %llu;", k.c_str(), static_cast<unsigned long long>(n));
+    std::printf("\n");
+  }
+  if (!r.false_alarms.empty()) {
+    std::vector<std::pair<std::uint64_t, std::string>> fa;
+    for (const auto& [k, n] : r.false_alarms) fa.emplace_back(n, k);
+    std::sort(fa.rbegin(), fa.rend());
+    std::printf("    valid returns rejected as mixed pixels (%llu), what the footprint lit:",
+                static_cast<unsigned long long>(r.valid_rejected_mixed));
+    for (std::size_t k = 0; k < std::min<std::size_t>(5, fa.size()); ++k)
+      std::printf(" %s %llu;", fa[k].second.c_str(), static_cast<unsigned long long>(fa[k].first));
     std::printf("\n");
   }
   if (m.empty()) return;
@@ -450,6 +467,7 @@ int main(int argc, char** argv) {
   std::string set = "tuning", json;
   std::vector<int> indices;
   int worst = 3;
+  std::string rank = "recall";
   for (int a = 1; a < argc; ++a) {
     const std::string k = argv[a];
     const bool has = a + 1 < argc;
@@ -457,9 +475,11 @@ int main(int argc, char** argv) {
     else if (k == "--index" && has) indices.push_back(std::atoi(argv[++a]));
     else if (k == "--json" && has) json = argv[++a];
     else if (k == "--misses" && has) worst = std::atoi(argv[++a]);
+    else if (k == "--rank" && has) rank = argv[++a];
     else {
       std::fprintf(stderr,
-                   "usage: %s [--set tuning|heldout] [--index N]... [--json FILE] [--misses K]\n"
+                   "usage: %s [--set tuning|heldout] [--index N]... [--json FILE] [--misses K] [--rank recall|f1|valid]\n"
+                   "  --misses K: analyse the misses of the K worst settings by --rank (default 3, recall)\n"
                    "  tuning: settings 0-23; heldout: 1000-1015 (never used for tuning)\n",
                    argv[0]);
       return 2;
@@ -493,8 +513,10 @@ int main(int argc, char** argv) {
   std::printf("\n");
   std::vector<const Result*> order;
   for (const auto& r : results) order.push_back(&r);
-  std::sort(order.begin(), order.end(), [](const Result* a, const Result* b) { return a->f1() < b->f1(); });
-  std::printf("\nmisses (truth mixed pixels kept), pooled and for the %d settings of lowest F1:\n", worst);
+  std::sort(order.begin(), order.end(), [&](const Result* a, const Result* b) {
+    return rank == "f1" ? a->f1() < b->f1() : rank == "valid" ? a->valid_rate() > b->valid_rate() : a->recall() < b->recall();
+  });
+  std::printf("\nmisses (truth mixed pixels kept), pooled and for the %d worst settings by %s:\n", worst, rank.c_str());
   print_misses(all);
   for (int k = 0; k < worst && k < static_cast<int>(order.size()); ++k) print_misses(*order[static_cast<std::size_t>(k)]);
   if (!json.empty()) {
