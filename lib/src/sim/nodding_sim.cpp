@@ -28,7 +28,7 @@ struct Hit {
 };
 
 /// Ray (o + t d, t in (0, hit.t)) against an axis-aligned box; updates `hit` when nearer.
-bool hit_box(const Box& b, const Eigen::Vector3d& o, const Eigen::Vector3d& d, Hit& hit) {
+bool hit_aabb(const Box& b, const Eigen::Vector3d& o, const Eigen::Vector3d& d, Hit& hit) {
   double tmin = 0.0, tmax = hit.t;
   int axis = -1;
   double sign = 1.0;
@@ -56,6 +56,63 @@ bool hit_box(const Box& b, const Eigen::Vector3d& o, const Eigen::Vector3d& d, H
   hit.normal = Eigen::Vector3d::Zero();
   hit.normal[axis] = sign;
   hit.reflectivity = b.reflectivity;
+  return true;
+}
+
+/// Ray against a box turned by b.yaw: the ray in the box's own frame against the axis-aligned
+/// box, the normal turned back (yaw 0 is hit_aabb itself, bit for bit).
+bool hit_box(const Box& b, const Eigen::Vector3d& o, const Eigen::Vector3d& d, Hit& hit) {
+  if (b.yaw == 0.0) return hit_aabb(b, o, d, hit);
+  const double c = std::cos(b.yaw), s = std::sin(b.yaw);
+  const double cx = 0.5 * (b.min.x() + b.max.x()), cy = 0.5 * (b.min.y() + b.max.y());
+  const double ox = o.x() - cx, oy = o.y() - cy;
+  const Eigen::Vector3d ol(c * ox + s * oy + cx, -s * ox + c * oy + cy, o.z());
+  const Eigen::Vector3d dl(c * d.x() + s * d.y(), -s * d.x() + c * d.y(), d.z());
+  if (!hit_aabb(b, ol, dl, hit)) return false;
+  const Eigen::Vector3d n = hit.normal;
+  hit.normal = Eigen::Vector3d(c * n.x() - s * n.y(), s * n.x() + c * n.y(), n.z());
+  return true;
+}
+
+/// Ray against a vertical cylinder (side and both caps); updates `hit` when nearer.
+bool hit_post(const Post& p, const Eigen::Vector3d& o, const Eigen::Vector3d& d, Hit& hit) {
+  const double r2 = p.radius * p.radius;
+  const double ox = o.x() - p.x, oy = o.y() - p.y;
+  const bool inside_xy = ox * ox + oy * oy <= r2;
+  if (inside_xy && o.z() >= p.z_min && o.z() <= p.z_max) return false;  // origin inside
+  double best = hit.t;
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+  bool found = false;
+  const double a = d.x() * d.x() + d.y() * d.y();
+  if (a > 1e-18 && !inside_xy) {  // the side: entering root of |o + t d - c|^2 = r^2 in xy
+    const double bq = ox * d.x() + oy * d.y();
+    const double disc = bq * bq - a * (ox * ox + oy * oy - r2);
+    if (disc >= 0.0) {
+      const double t = (-bq - std::sqrt(disc)) / a;
+      const double z = o.z() + t * d.z();
+      if (t > 1e-9 && t < best && z >= p.z_min && z <= p.z_max) {
+        best = t;
+        normal = Eigen::Vector3d((ox + t * d.x()) / p.radius, (oy + t * d.y()) / p.radius, 0.0);
+        found = true;
+      }
+    }
+  }
+  if (std::fabs(d.z()) > 1e-15) {  // the caps: the top seen from above, the bottom from below
+    const double zc = d.z() < 0 ? p.z_max : p.z_min;
+    if ((d.z() < 0 && o.z() > zc) || (d.z() > 0 && o.z() < zc)) {
+      const double t = (zc - o.z()) / d.z();
+      const double x = ox + t * d.x(), y = oy + t * d.y();
+      if (t > 1e-9 && t < best && x * x + y * y <= r2) {
+        best = t;
+        normal = Eigen::Vector3d(0.0, 0.0, d.z() < 0 ? 1.0 : -1.0);
+        found = true;
+      }
+    }
+  }
+  if (!found) return false;
+  hit.t = best;
+  hit.normal = normal;
+  hit.reflectivity = p.reflectivity;
   return true;
 }
 
@@ -117,6 +174,11 @@ Hit cast(const Scene& sc, const Eigen::Vector3d& o, const Eigen::Vector3d& d, do
       any = true;
       hit.object = static_cast<int>(k);
     }
+  for (std::size_t k = 0; k < sc.posts.size(); ++k)
+    if (hit_post(sc.posts[k], o, d, hit)) {
+      any = true;
+      hit.object = static_cast<int>(sc.boxes.size() + k);
+    }
   const double before = hit.t;
   hit_terrain(sc, o, d, t_max, hit);
   if (hit.t < before) {
@@ -127,7 +189,7 @@ Hit cast(const Scene& sc, const Eigen::Vector3d& o, const Eigen::Vector3d& d, do
   return hit;
 }
 
-/// Is the segment p -> r blocked by a box? (The terrain is smooth and the receiver is centimetres
+/// Is the segment p -> r blocked by a box or a post? (The terrain is smooth and the receiver is centimetres
 /// from the transmitter, whose ray to p was clear, so only boxes can hide p from the receiver.)
 bool blocked(const Scene& sc, const Eigen::Vector3d& p, const Eigen::Vector3d& r) {
   const Eigen::Vector3d d = r - p;
@@ -139,6 +201,11 @@ bool blocked(const Scene& sc, const Eigen::Vector3d& p, const Eigen::Vector3d& r
     Hit h;
     h.t = len - 2e-6;
     if (hit_box(b, start, u, h)) return true;
+  }
+  for (const auto& post : sc.posts) {
+    Hit h;
+    h.t = len - 2e-6;
+    if (hit_post(post, start, u, h)) return true;
   }
   return false;
 }
@@ -170,8 +237,21 @@ double Scene::terrain_height(double x, double y) const {
 double Scene::top_height(double x, double y) const {
   double z = terrain_height(x, y);
   for (const auto& b : boxes)
-    if (x >= b.min.x() && x <= b.max.x() && y >= b.min.y() && y <= b.max.y()) z = std::max(z, b.max.z());
+    if (b.covers(x, y)) z = std::max(z, b.max.z());
+  for (const auto& p : posts)
+    if ((x - p.x) * (x - p.x) + (y - p.y) * (y - p.y) <= p.radius * p.radius) z = std::max(z, p.z_max);
   return z;
+}
+
+bool Box::covers(double x, double y) const {
+  if (yaw != 0.0) {  // into the box's own frame
+    const double c = std::cos(yaw), s = std::sin(yaw);
+    const double cx = 0.5 * (min.x() + max.x()), cy = 0.5 * (min.y() + max.y());
+    const double dx = x - cx, dy = y - cy;
+    x = c * dx + s * dy + cx;
+    y = -s * dx + c * dy + cy;
+  }
+  return x >= min.x() && x <= max.x() && y >= min.y() && y <= max.y();
 }
 
 double constant_rate_nod(const Scanner& s, double t) {
@@ -276,6 +356,7 @@ BeamResult cast_beam(const SimConfig& cfg, const Eigen::Vector3d& origin, const 
   struct Lit {
     double d;
     int object;
+    double reflectivity, w;
   };
   std::vector<Lit> lit;  // visible sub-rays
   lit.reserve(static_cast<std::size_t>(K));
@@ -296,7 +377,7 @@ BeamResult cast_beam(const SimConfig& cfg, const Eigen::Vector3d& origin, const 
     const Eigen::Vector3d p = origin + hit.t * dk;
     const bool visible = s.transceiver_separation <= 0.0 || !blocked(cfg.scene, p, receiver);
     if (!visible) continue;
-    lit.push_back({hit.t, hit.object});
+    lit.push_back({hit.t, hit.object, hit.reflectivity, w});
     r.amplitude += w;
     wsum += w;
     wd += w * hit.t;
@@ -321,6 +402,16 @@ BeamResult cast_beam(const SimConfig& cfg, const Eigen::Vector3d& origin, const 
       }
     }
     r.objects = static_cast<int>(ids.size());
+    const auto [ln, lf] = std::minmax_element(lit.begin(), lit.end(), [](const Lit& a, const Lit& b) { return a.d < b.d; });
+    r.near = ln->d;
+    r.far = lf->d;
+    r.near_object = ln->object;
+    r.far_object = lf->object;
+    r.near_reflectivity = ln->reflectivity;
+    r.far_reflectivity = lf->reflectivity;
+    double wn = 0.0;
+    for (const auto& l : lit) wn += l.object == ln->object ? l.w : 0.0;
+    r.near_power_share = wn / wsum;
     for (const auto& [lo, hi] : span)
       r.min_dev = std::min(r.min_dev, r.range < lo ? lo - r.range : r.range > hi ? r.range - hi : 0.0);
   }
@@ -394,6 +485,9 @@ SimResult simulate(const SimConfig& cfg) {
         sp.true_nod.push_back(static_cast<float>(eta));
         sp.truth.push_back(truth);
         sp.true_amplitude.push_back(static_cast<float>(beam.amplitude));
+        sp.footprint.push_back({static_cast<float>(beam.near), static_cast<float>(beam.far), beam.near_object,
+                                beam.far_object, static_cast<float>(beam.near_reflectivity),
+                                static_cast<float>(beam.far_reflectivity), static_cast<float>(beam.near_power_share)});
       }
     }
     p.line_begin.push_back(p.range.size());

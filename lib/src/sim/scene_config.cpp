@@ -128,13 +128,13 @@ void check_scene_work(const std::string& src, const sim::SimConfig& c) {
     throw ConfigError(src + ": the scene needs passes x lines_per_pass x scanner.beams = " + product + " = " +
                       num(returns) + " returns; simulate holds them in memory and is limited to " + num(kMaxReturns) +
                       ": reduce passes, lines_per_pass or scanner.beams (or simulate in parts with other t0 and seed)");
-  const double boxes = static_cast<double>(c.scene.boxes.size());
+  const double boxes = static_cast<double>(c.scene.boxes.size() + c.scene.posts.size());
   const double work = returns * c.scanner.subrays * (1.0 + boxes / kBoxesPerTerrain);
   if (work > kMaxRayWork)
     throw ConfigError(src + ": the scene needs passes x lines_per_pass x scanner.beams x scanner.subrays = " + product +
                       " x " + std::to_string(c.scanner.subrays) + " = " +
                       num(returns * c.scanner.subrays) + " rays" +
-                      (boxes > 0 ? " against the terrain and " + num(boxes) + " boxes (" + num(work) + " ray equivalents)"
+                      (boxes > 0 ? " against the terrain and " + num(boxes) + " boxes and posts (" + num(work) + " ray equivalents)"
                                  : std::string()) +
                       "; simulate is limited to " + num(kMaxRayWork) +
                       " (about half a minute): reduce passes, lines_per_pass, scanner.beams, scanner.subrays or the boxes");
@@ -151,7 +151,7 @@ sim::SimConfig load_scene_from_string(const std::string& yaml, const std::string
   const YAML::Node root = detail::parse_yaml(yaml, src);
   if (!root.IsMap()) throw ConfigError(src + ": a scene must be a mapping of keys");
   const std::vector<std::string> keys = {"description", "seed", "rpy_order", "passes", "lines_per_pass", "t0",
-                                         "mount", "scanner", "motion", "terrain", "boxes"};
+                                         "mount", "scanner", "motion", "terrain", "boxes", "posts"};
   for (const auto& kv : root) {
     const std::string k = kv.first.Scalar();
     if (std::find(keys.begin(), keys.end(), k) == keys.end())
@@ -234,15 +234,25 @@ sim::SimConfig load_scene_from_string(const std::string& yaml, const std::string
   c.scene.undulation_amplitude = te.get_double("undulation_amplitude");
   c.scene.undulation_wavelength = te.get_double("undulation_wavelength");
   c.scene.ground_reflectivity = te.get_double("reflectivity");
+  // One number of a box or post: a scalar within [lo, hi].
+  const auto number = [&](const YAML::Node& n, const char* what, const char* key, double lo, double hi) {
+    const std::string t = n.IsScalar() ? n.Scalar() : "";
+    OptionValue v;
+    if (!parse_option_value(opt_double(key, 0.0, lo, hi, "", ""), t, v)) return std::get<double>(v);
+    std::ostringstream os;
+    os << detail::where(src, n) << ": " << what << ": " << key << " '" << t << "' must be a number in [" << lo << ", " << hi
+       << "]";
+    throw ConfigError(os.str());
+  };
   if (root["boxes"]) {
     if (!root["boxes"].IsSequence()) throw ConfigError(detail::where(src, root["boxes"]) + ": 'boxes' must be a list");
     for (const auto& b : root["boxes"]) {
-      if (!b.IsMap()) throw ConfigError(detail::where(src, b) + ": each box is a mapping {min, max, reflectivity}");
+      if (!b.IsMap()) throw ConfigError(detail::where(src, b) + ": each box is a mapping {min, max, reflectivity, yaw}");
       for (const auto& kv : b) {
         const std::string k = kv.first.Scalar();
-        if (k != "min" && k != "max" && k != "reflectivity" && k != "name")
+        if (k != "min" && k != "max" && k != "reflectivity" && k != "yaw" && k != "name")
           throw ConfigError(detail::where(src, kv.first) + ": box: unknown key '" + k + "'" +
-                            did_you_mean(k, {"min", "max", "reflectivity", "name"}));
+                            did_you_mean(k, {"min", "max", "reflectivity", "yaw", "name"}));
       }
       sim::Box box;
       box.min = vec3(src, b["min"], "box min");
@@ -257,7 +267,32 @@ sim::SimConfig load_scene_from_string(const std::string& yaml, const std::string
         else
           throw ConfigError(detail::where(src, b["reflectivity"]) + ": box: reflectivity '" + t + "' must be in [0, 1]");
       }
+      if (b["yaw"]) box.yaw = number(b["yaw"], "box", "yaw", -6.3, 6.3);
       c.scene.boxes.push_back(box);
+    }
+  }
+  if (root["posts"]) {
+    if (!root["posts"].IsSequence()) throw ConfigError(detail::where(src, root["posts"]) + ": 'posts' must be a list");
+    const std::vector<std::string> post_keys = {"x", "y", "radius", "z_min", "z_max", "reflectivity", "name"};
+    for (const auto& n : root["posts"]) {
+      if (!n.IsMap())
+        throw ConfigError(detail::where(src, n) + ": each post is a mapping {x, y, radius, z_min, z_max, reflectivity}");
+      for (const auto& kv : n) {
+        const std::string k = kv.first.Scalar();
+        if (std::find(post_keys.begin(), post_keys.end(), k) == post_keys.end())
+          throw ConfigError(detail::where(src, kv.first) + ": post: unknown key '" + k + "'" + did_you_mean(k, post_keys));
+      }
+      for (const char* k : {"x", "y", "radius", "z_min", "z_max"})
+        if (!n[k]) throw ConfigError(detail::where(src, n) + ": post: '" + k + "' is required");
+      sim::Post p;
+      p.x = number(n["x"], "post", "x", -1e6, 1e6);
+      p.y = number(n["y"], "post", "y", -1e6, 1e6);
+      p.radius = number(n["radius"], "post", "radius", 1e-3, 100.0);
+      p.z_min = number(n["z_min"], "post", "z_min", -1e4, 1e4);
+      p.z_max = number(n["z_max"], "post", "z_max", -1e4, 1e4);
+      if (p.z_max <= p.z_min) throw ConfigError(detail::where(src, n) + ": post: z_max must exceed z_min");
+      if (n["reflectivity"]) p.reflectivity = number(n["reflectivity"], "post", "reflectivity", 0.0, 1.0);
+      c.scene.posts.push_back(p);
     }
   }
   check_scene_work(src, c);

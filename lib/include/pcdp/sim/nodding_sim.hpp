@@ -1,7 +1,8 @@
 // A physical nodding-LADAR simulator with ground truth (issue: simulator).
 //
 // A 2-D scanner nods on a vehicle that drives over a height-field terrain among boxes (boxes,
-// walls and posts). Each effect is configurable and documented with its source:
+// walls, steps, kerbs, table tops; each may be turned about the vertical) and vertical cylinders
+// (posts). Each effect is configurable and documented with its source:
 //  - finite beam footprint: every beam is `subrays` rays spread uniformly over the divergence
 //    cone (full angle alpha), each carrying an equal share of the power (Liu et al. 2005,
 //    assumption 1: power uniform over the cross-section);
@@ -36,9 +37,23 @@
 
 namespace pcdp::sim {
 
+/// A box: [min, max] in its own frame, turned by `yaw` (rad, counter-clockwise seen from above)
+/// about the vertical axis through the centre of its footprint; yaw 0 is axis-aligned, so its
+/// edges can run oblique to the scan lines.
 struct Box {
   Eigen::Vector3d min = Eigen::Vector3d::Zero();
   Eigen::Vector3d max = Eigen::Vector3d::Ones();
+  double reflectivity = 0.5;  ///< 0..1
+  double yaw = 0.0;           ///< rad, about z through ((min + max) / 2).xy
+  /// Whether the map point (x, y) lies inside the box's footprint.
+  bool covers(double x, double y) const;
+};
+
+/// A vertical cylinder (a post, pole or table leg): axis at (x, y), from z_min to z_max.
+struct Post {
+  double x = 0.0, y = 0.0;
+  double radius = 0.05;  ///< m
+  double z_min = 0.0, z_max = 1.0;
   double reflectivity = 0.5;  ///< 0..1
 };
 
@@ -48,9 +63,10 @@ struct Scene {
   double undulation_wavelength = 10.0;  ///< m
   double ground_reflectivity = 0.4;
   std::vector<Box> boxes;
+  std::vector<Post> posts;  ///< object ids follow the boxes': post k is object boxes.size() + k
 
   double terrain_height(double x, double y) const;
-  /// Top-surface height at (x, y): the highest box top covering it, else the terrain.
+  /// Top-surface height at (x, y): the highest box or post top covering it, else the terrain.
   double top_height(double x, double y) const;
 };
 
@@ -117,6 +133,13 @@ struct SimConfig {
   std::uint64_t seed = 1;
 };
 
+/// What a beam's visible footprint lit (BeamResult's near/far fields, stored per return).
+struct BeamFootprint {
+  float near = 0, far = 0;  ///< m, nearest and farthest lit depth (0: nothing lit)
+  std::int32_t near_object = -1, far_object = -1;
+  float near_reflectivity = 0, far_reflectivity = 0, near_power_share = 0;
+};
+
 /// Truth labels use the codes of the data contract (labels.hpp): kKept (valid), kNoReturn,
 /// kOcclusion (false range caused by the receiver's occlusion dip), kMixedPixel, kLowAmplitude
 /// (false range from a weak return without occlusion).
@@ -126,6 +149,7 @@ struct SimPass {
   std::vector<float> true_nod;              ///< true nod angle at the return's stamp
   std::vector<Label> truth;                 ///< truth label
   std::vector<float> true_amplitude;        ///< noise-free received amplitude
+  std::vector<BeamFootprint> footprint;     ///< what each beam's footprint lit (see BeamResult)
 };
 
 struct SimResult {
@@ -158,8 +182,14 @@ struct BeamResult {
   double amplitude_full = 0.0;  ///< if nothing hid the footprint from the receiver
   double range = 0.0;           ///< power-weighted mean range of the visible part (0: nothing)
   double min_dev = 0.0;         ///< distance from range to the nearest lit object's depth interval
-  int objects = 0;              ///< distinct objects (boxes, terrain) the visible footprint lit
+  int objects = 0;              ///< distinct objects (boxes, posts, terrain) the visible footprint lit
   bool any_hit = false;
+  // What the visible footprint lit (for analysing misses): the nearest and farthest lit depth,
+  // the objects there (-1 terrain, box index, boxes.size() + post index), their reflectivity,
+  // and the share of the received power from the nearest object.
+  double near = 0.0, far = 0.0;
+  int near_object = -1, far_object = -1;
+  double near_reflectivity = 0.0, far_reflectivity = 0.0, near_power_share = 0.0;
 };
 BeamResult cast_beam(const SimConfig& cfg, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
                      const Eigen::Vector3d& u, const Eigen::Vector3d& v, double bearing);
