@@ -6,26 +6,26 @@
 
 #include "pcdp/core/errors.hpp"
 #include "pcdp/io/poses.hpp"
+#include "pcdp/pipeline/pipeline.hpp"
 
 namespace pcdp {
 
-LineStream::LineStream(PipelineConfig config, std::size_t block_lines)
+LineStream::LineStream(PipelineConfig config, std::size_t block_lines, const std::vector<StageInfo>& stages)
     : config_(std::make_shared<PipelineConfig>(std::move(config))), block_(block_lines) {
   const PipelineConfig& cfg = *config_;
   if (block_ < 1) throw ConfigError("stream: block_lines must be at least 1");
-  if (cfg.stages.empty()) throw ConfigError(cfg.source + ": the pipeline is empty: 'stages' lists no stage");
-  if (cfg.stages.front().type != "register")
-    throw ConfigError(cfg.stages.front().where + ": stage '" + cfg.stages.front().name +
-                      "': the first stage must be 'register'");
+  check_stage_order(cfg, stages);
   poses_ = std::make_shared<PoseTrack>(cfg.poses.empty() ? PoseTrack{} : io::read_pose_csv(cfg.poses, cfg.rpy_order));
   context_.config = config_.get();
   context_.poses = poses_;
   for (const auto& sc : cfg.stages) {
-    auto st = find_stage(sc.type)->create(sc, context_);
-    if (st->stream_reach() < 0)
+    auto st = find_stage(sc.type, stages)->create(sc, context_);
+    // Labellers with a reach run on windows of lines; accumulators and two-phase stages need
+    // every pass.
+    if (st->kind() != StageKind::kLabeller || st->reach() < 0)
       throw ConfigError(sc.where + ": stage '" + sc.name + "' (" + sc.type +
                         ") cannot stream: it needs whole passes (a streaming pipeline holds register and the reject stages)");
-    ahead_ += st->stream_reach();
+    ahead_ += st->reach();
     stages_.push_back(std::move(st));
     StageReport r;
     r.name = sc.name;
@@ -106,7 +106,7 @@ std::vector<Pass> LineStream::finish(std::size_t upto, bool to_end) {
   w.flags.assign(w.range.size(), 0);
   for (std::size_t s = 0; s < stages_.size(); ++s) {
     const auto t0 = std::chrono::steady_clock::now();
-    stages_[s]->process(w, reports_[s]);
+    stages_[s]->label(w, reports_[s]);
     reports_[s].seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }
   // Cut the finished lines out of the window.

@@ -30,34 +30,40 @@ namespace {
 class CheckConsistencyStage final : public Stage {
  public:
   CheckConsistencyStage(ConsistencyParams p, std::string name, Eigen::Vector3d origin)
-      : evidence_(p), p_(p), name_(std::move(name)), origin_(origin) {}
-  bool wants_prepass() const override { return true; }
-  bool concurrent() const override { return true; }  // label() reads the evidence, complete after the prepass
-  void prepass(const Pass& pass) override {
+      : p_(p), name_(std::move(name)), origin_(origin), collector_(p) {}
+  // Evidence from every pass first (collect, merge, finish), then label() reads it.
+  StageKind kind() const override { return StageKind::kTwoPhase; }
+  std::unique_ptr<Partial> collect(const Pass& pass, StageReport&, WorkShare&) const override {
     check_key_range(pass);
-    evidence_.add_pass(pass);
+    return Evidence::of(collector_.collect(pass), pass.index == 0, [this] { return fresh(); }, &fold);
   }
-  bool prepass_split() const override { return true; }
-  std::unique_ptr<StageWork> prepass_compute(const Pass& pass) const override {
-    check_key_range(pass);
-    auto w = std::make_unique<Work>();
-    w->rays = evidence_.collect(pass);
-    return w;
+  // The passes' hit bits commute; the rays are kept in pass order (InOrderPartial) so that
+  // finish() sees them as a pass-by-pass fold would.
+  void merge(Partial& into, Partial&& later) const override {
+    static_cast<Evidence&>(into).absorb(std::move(static_cast<Evidence&>(later)), &fold);
   }
-  void prepass_apply(std::unique_ptr<StageWork> w) override { evidence_.merge(std::move(static_cast<Work&>(*w).rays)); }
-  void prepass_finish(unsigned threads) override { evidence_.finalize(threads); }
-  void process(Pass& pass, StageReport&) override { evidence_.label(pass); }
-  void finish(OutputSink&, StageReport& report) override {
+  std::vector<ProductWriter> finish(std::unique_ptr<Partial> all, StageReport& report, unsigned threads) override {
+    evidence_ = Evidence::fold_all(all.get(), [this] { return fresh(); }, &fold);
+    evidence_->finalize(threads);
     // What decided the labels: how many returns needed free-space evidence at all.
-    const ConsistencyEvidence::Stats& s = evidence_.stats();
+    const ConsistencyEvidence::Stats& s = evidence_->stats();
     report.metrics["lonely_returns"] = static_cast<double>(s.lonely_returns);
     report.metrics["lonely_voxels"] = static_cast<double>(s.lonely_voxels);
     report.metrics["rays_walked"] = static_cast<double>(s.rays_walked);
     report.metrics["ray_crossings"] = static_cast<double>(s.crossings);
     report.metrics["rays_in_fans"] = static_cast<double>(s.rays_in_fans);
+    return {};
+  }
+  void label(Pass& pass, StageReport&) const override {
+    if (!evidence_) throw std::logic_error("check_consistency: label() before finish()");
+    evidence_->label(pass);
   }
 
  private:
+  using Evidence = InOrderPartial<ConsistencyEvidence, ConsistencyEvidence::PassRays>;
+  static void fold(ConsistencyEvidence& e, ConsistencyEvidence::PassRays&& r) { e.merge(std::move(r)); }
+  std::unique_ptr<ConsistencyEvidence> fresh() const { return std::make_unique<ConsistencyEvidence>(p_); }
+
   // The voxel keys hold 21 bits per axis and wrap beyond: two voxels 2^21 apart would share
   // evidence. Every voxel the run touches lies within 2^20 voxels of the map origin (less the
   // neighbourhood a hit covers, and a voxel for rounding) or the run is refused: an InputError,
@@ -81,13 +87,11 @@ class CheckConsistencyStage final : public Stage {
     }
   }
 
-  ConsistencyEvidence evidence_;
   ConsistencyParams p_;
   std::string name_;
   Eigen::Vector3d origin_;
-  struct Work final : StageWork {
-    ConsistencyEvidence::PassRays rays;
-  };
+  ConsistencyEvidence collector_;  ///< empty: collect() only reads its parameters
+  std::unique_ptr<ConsistencyEvidence> evidence_;  ///< after finish()
 };
 }  // namespace
 

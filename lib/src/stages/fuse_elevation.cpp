@@ -117,65 +117,88 @@ namespace {
 class FuseElevationStage final : public Stage {
  public:
   FuseElevationStage(FuseElevationParams p, double fallback_var, std::string name, std::string crs)
-      : params_(p), fallback_var_(fallback_var), grid_(make_elevation_grid(p)), name_(std::move(name)), crs_(std::move(crs)) {}
-  bool split() const override { return true; }
-  // The samples this pass adds, computed on the worker (copied, since later stages may still
-  // change the pass); in order, the grid only looks their cells up and sums.
-  std::unique_ptr<StageWork> compute(const Pass& pass, StageReport&, WorkShare&) const override {
-    auto w = std::make_unique<Work>();
-    w->samples = samples(grid_, pass, params_, fallback_var_, w->bounds);
-    w->source = pass.source;
+      : Stage(p.png ? std::vector<std::string>{"elevation.tif", "elevation.state.tif", "elevation.png"}
+                    : std::vector<std::string>{"elevation.tif", "elevation.state.tif"}),  // the merge state beside the grid
+        params_(p), fallback_var_(fallback_var), name_(std::move(name)), crs_(std::move(crs)),
+        key_grid_(make_elevation_grid(p)) {}
+  StageKind kind() const override { return StageKind::kAccumulator; }
+  // The samples a pass adds, computed on the worker (copied, since later stages may still change
+  // the pass); the fold only looks their cells up and sums, in pass order.
+  std::unique_ptr<Partial> collect(const Pass& pass, StageReport&, WorkShare&) const override {
+    Samples w;
+    w.samples = samples(key_grid_, pass, params_, fallback_var_, w.bounds);
+    w.source = pass.source;
+    return Fused::of(std::move(w), pass.index == 0, [this] { return fresh(); },
+                     [this](State& s, Samples&& x) { fold(s, std::move(x)); });
+  }
+  // The cells' sums and top height bands depend on the order of the samples: the partial folds
+  // in pass order (InOrderPartial), exactly what adding pass by pass gives.
+  void merge(Partial& into, Partial&& later) const override {
+    static_cast<Fused&>(into).absorb(std::move(static_cast<Fused&>(later)),
+                                     [this](State& s, Samples&& x) { fold(s, std::move(x)); });
+  }
+  // Two writers, run at once when the run has threads: elevation.tif and its merge state (and the
+  // report's cell counts), then elevation.png. Both only read the grid.
+  std::vector<ProductWriter> finish(std::unique_ptr<Partial> all, StageReport&, unsigned) override {
+    std::unique_ptr<State> s = Fused::fold_all(all.get(), [this] { return fresh(); },
+                                               [this](State& st, Samples&& x) { fold(st, std::move(x)); });
+    auto grid = std::make_shared<const ElevationGrid>(std::move(s->grid));
+    std::vector<ProductWriter> w;
+    w.push_back({{"elevation.tif", "elevation.state.tif"},
+                 [this, grid](const std::vector<std::string>& to, StageReport& report, WorkShare& share) {
+                   named([&] { write_grid(*grid, to[0], to[1], report, share); });
+                 }});
+    if (params_.png)
+      w.push_back({{"elevation.png"}, [this, grid](const std::vector<std::string>& to, StageReport& report, WorkShare&) {
+                     named([&] {
+                       const auto t0 = std::chrono::steady_clock::now();
+                       const int down = io::write_elevation_png(*grid, to[0]);
+                       if (down > 1) report.metrics["png_cells_per_pixel"] = static_cast<double>(down * down);
+                       report.metrics["write_seconds"] +=
+                           std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+                     });
+                   }});
     return w;
   }
-  void apply(std::unique_ptr<StageWork> work, StageReport&) override {
-    const Work& w = static_cast<Work&>(*work);
-    check_extent(w.bounds, w.source);
-    grid_.add(w.samples.data(), w.samples.size());
+
+ private:
+  struct State {
+    ElevationGrid grid;
+    CellBounds bounds;
+  };
+  struct Samples {
+    std::vector<ElevationSample> samples;
+    CellBounds bounds;
+    std::string source;
+  };
+  using Fused = InOrderPartial<State, Samples>;
+  std::unique_ptr<State> fresh() const { return std::make_unique<State>(State{make_elevation_grid(params_), {}}); }
+
+  void fold(State& s, Samples&& w) const {
+    check_extent(s.bounds, w.bounds, w.source, s.grid.resolution());
+    s.grid.add(w.samples.data(), w.samples.size());
   }
-  void process(Pass& pass, StageReport&) override {
-    CellBounds b;
-    for_each_point(grid_, pass, params_, fallback_var_, [&](double x, double y, double, double, std::int32_t) {
-      b.add(grid_.cell_index(x), grid_.cell_index(y));
-    });
-    check_extent(b, pass.source);
-    fuse_pass(grid_, pass, params_, fallback_var_);
-  }
-  // Two parts, written at once when the run has threads: elevation.tif and its merge state (and the report's
-  // cell count), then elevation.png. Both only read the grid.
-  std::size_t finish_parts() const override { return params_.png ? 2 : 1; }
-  std::vector<std::string> products() const override {
-    // elevation.state.tif: the merge state beside elevation.tif (committed with it, as a set).
-    return params_.png ? std::vector<std::string>{"elevation.tif", "elevation.state.tif", "elevation.png"}
-                       : std::vector<std::string>{"elevation.tif", "elevation.state.tif"};
-  }
-  void finish(OutputSink& sink, StageReport& report) override {
-    for (std::size_t p = 0; p < finish_parts(); ++p) finish_part(p, sink, report, WorkShare::serial());
-  }
-  void finish_part(std::size_t part, OutputSink& sink, StageReport& report, WorkShare& share) override {
+
+  // A grid too large for its product: name the stage.
+  template <class F>
+  void named(F&& f) const {
     try {
-      write_part(part, sink, report, share);
-    } catch (const InputError& e) {  // a grid too large for its product: name the stage
+      f();
+    } catch (const InputError& e) {
       throw InputError("stage '" + name_ + "' (fuse_elevation): " + e.what());
     }
   }
 
- private:
-  void write_part(std::size_t part, OutputSink& sink, StageReport& report, WorkShare& share) {
+  void write_grid(const ElevationGrid& grid, const std::string& tif, const std::string& state, StageReport& report,
+                  WorkShare& share) const {
     const auto t0 = std::chrono::steady_clock::now();
-    if (part == 1) {
-      const int down = io::write_elevation_png(grid_, sink.staged_path("elevation.png"));
-      if (down > 1) report.metrics["png_cells_per_pixel"] = static_cast<double>(down * down);
-      report.metrics["write_seconds"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      return;
-    }
-    const std::size_t cells = io::write_elevation_geotiff(grid_, sink.staged_path("elevation.tif"), params_.deflate_level,
-                                                          share, crs_, sink.staged_path("elevation.state.tif"));
+    const std::size_t cells = io::write_elevation_geotiff(grid, tif, params_.deflate_level, share, crs_, state);
     report.metrics["write_seconds"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     report.metrics["cells"] = static_cast<double>(cells);
     // A grid without one surface is no map: say so (report.json and stderr) rather than leave an
     // all-NaN elevation band to be found in a GIS.
     std::size_t surfaces = 0;
-    grid_.for_each([&](std::int64_t, std::int64_t, const ElevationCell& c) {
+    grid.for_each([&](std::int64_t, std::int64_t, const ElevationCell& c) {
       double w = 0.0, wz = 0.0;
       c.surface(params_.min_support, w, wz);
       surfaces += w > 0.0 ? 1 : 0;
@@ -188,31 +211,25 @@ class FuseElevationStage final : public Stage {
                                 "): elevation.tif holds no elevation");
   }
 
-  /// The products' size limit (io::check_elevation_extent), checked as each pass arrives: a pose
+  /// The products' size limit (io::check_elevation_extent), checked as each pass is folded: a pose
   /// jump stops the run at the pass that made it, not after every pass was fused.
-  void check_extent(const CellBounds& pass_bounds, const std::string& source) {
-    CellBounds b = bounds_;
+  void check_extent(CellBounds& bounds, const CellBounds& pass_bounds, const std::string& source, double res) const {
+    CellBounds b = bounds;
     b.add(pass_bounds);
     if (!b.any()) return;
     try {
-      io::check_elevation_extent(b.lo[0], b.lo[1], b.hi[0], b.hi[1], grid_.resolution());
+      io::check_elevation_extent(b.lo[0], b.lo[1], b.hi[0], b.hi[1], res);
     } catch (const InputError& e) {
       throw InputError("stage '" + name_ + "' (fuse_elevation): with pass " + source + ": " + e.what());
     }
-    bounds_ = b;
+    bounds = b;
   }
 
   FuseElevationParams params_;
   double fallback_var_;
-  ElevationGrid grid_;
   std::string name_;
-  CellBounds bounds_;
   std::string crs_;  ///< the pipeline's `crs` (normalised), elevation.tif's GeoKeys
-  struct Work final : StageWork {
-    std::vector<ElevationSample> samples;
-    CellBounds bounds;
-    std::string source;
-  };
+  ElevationGrid key_grid_;  ///< empty: only its cell geometry is used, by collect() on any thread
 };
 }  // namespace
 

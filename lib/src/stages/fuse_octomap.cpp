@@ -31,46 +31,52 @@ namespace {
 class FuseOctoMapStage final : public Stage {
  public:
   FuseOctoMapStage(OctoMapParams p, bool write_ot, std::string name, Eigen::Vector3d origin)
-      : params_(p), write_ot_(write_ot), name_(std::move(name)), origin_(origin), caster_(make_octree(p)), cells_(p) {}
-  bool split() const override { return true; }
-  std::unique_ptr<StageWork> compute(const Pass& pass, StageReport& report, WorkShare& share) const override {
+      : Stage(write_ot ? std::vector<std::string>{"map.bt", "map.ot"} : std::vector<std::string>{"map.bt"}),
+        params_(p), write_ot_(write_ot), name_(std::move(name)), origin_(origin), caster_(make_octree(p)) {}
+  StageKind kind() const override { return StageKind::kAccumulator; }
+  // The costly part: each pass's rays cast to the cells they update (any thread).
+  std::unique_ptr<Partial> collect(const Pass& pass, StageReport& report, WorkShare& share) const override {
     check_key_range(pass);
-    auto w = std::make_unique<Work>();
-    w->rays = cast_pass(caster_, pass, params_, share);
-    report.metrics["rays"] += static_cast<double>(w->rays.rays);
-    return w;
+    PassRays rays = cast_pass(caster_, pass, params_, share);
+    report.metrics["rays"] += static_cast<double>(rays.rays);
+    return Cells::of(std::move(rays), pass.index == 0, [this] { return fresh(); }, &fold);
   }
-  // In pass order: each pass's cells into the log-odds accumulator (map.bt is encoded from it in
-  // finish: the same leaves as updating a tree pass by pass, at a fraction of the cost).
-  void apply(std::unique_ptr<StageWork> work, StageReport&) override { cells_.add(static_cast<Work&>(*work).rays); }
-  void process(Pass& pass, StageReport& report) override { apply(compute(pass, report, WorkShare::serial()), report); }
-  std::vector<std::string> products() const override {
-    return write_ot_ ? std::vector<std::string>{"map.bt", "map.ot"} : std::vector<std::string>{"map.bt"};
+  // Each pass's cells into the log-odds accumulator, in pass order: OctoMap's clamped update does
+  // not commute, so the partial folds in pass order (InOrderPartial), the leaves of updating a
+  // tree pass by pass.
+  void merge(Partial& into, Partial&& later) const override {
+    static_cast<Cells&>(into).absorb(std::move(static_cast<Cells&>(later)), &fold);
   }
-  void finish(OutputSink& sink, StageReport& report) override {
-    // map.bt straight from the accumulated leaves (the same bytes as building OctoMap's tree and
-    // writing it, at a fraction of the time and memory); the tree is built only for map.ot.
-    const OccupancyAccumulator::BinaryMap map = cells_.encode_binary();
-    const auto t0 = std::chrono::steady_clock::now();
-    const std::string bt = sink.staged_path("map.bt");
-    {
-      std::ofstream out(bt, std::ios::binary);
-      if (!out || !out.write(map.bytes.data(), static_cast<std::streamsize>(map.bytes.size())) || !out.flush())
-        throw OutputError(bt + ": cannot write the map (" + std::string(std::strerror(errno)) + ")");
-    }
-    if (write_ot_) {
-      octomap::OcTree tree = make_octree(params_);
-      cells_.build(tree);
-      const std::string ot = sink.staged_path("map.ot");
-      std::ofstream out(ot, std::ios::binary);
-      if (!out || !tree.write(out) || !out.flush()) throw OutputError(ot + ": cannot write the map (" + std::string(std::strerror(errno)) + ")");
-    }
-    report.metrics["write_seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    report.metrics["occupied_leaves"] = static_cast<double>(map.occupied_leaves);
-    report.metrics["nodes"] = static_cast<double>(map.nodes);
+  // One writer: map.bt straight from the accumulated leaves (the same bytes as building OctoMap's
+  // tree and writing it, at a fraction of the time and memory); the tree is built only for map.ot.
+  std::vector<ProductWriter> finish(std::unique_ptr<Partial> all, StageReport&, unsigned) override {
+    std::shared_ptr<const OccupancyAccumulator> cells = Cells::fold_all(all.get(), [this] { return fresh(); }, &fold);
+    return {{products(), [this, cells](const std::vector<std::string>& to, StageReport& report, WorkShare&) {
+               const OccupancyAccumulator::BinaryMap map = cells->encode_binary();
+               const auto t0 = std::chrono::steady_clock::now();
+               {
+                 std::ofstream out(to[0], std::ios::binary);
+                 if (!out || !out.write(map.bytes.data(), static_cast<std::streamsize>(map.bytes.size())) || !out.flush())
+                   throw OutputError(to[0] + ": cannot write the map (" + std::string(std::strerror(errno)) + ")");
+               }
+               if (write_ot_) {
+                 octomap::OcTree tree = make_octree(params_);
+                 cells->build(tree);
+                 std::ofstream out(to[1], std::ios::binary);
+                 if (!out || !tree.write(out) || !out.flush())
+                   throw OutputError(to[1] + ": cannot write the map (" + std::string(std::strerror(errno)) + ")");
+               }
+               report.metrics["write_seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+               report.metrics["occupied_leaves"] = static_cast<double>(map.occupied_leaves);
+               report.metrics["nodes"] = static_cast<double>(map.nodes);
+             }}};
   }
 
  private:
+  using Cells = InOrderPartial<OccupancyAccumulator, PassRays>;
+  static void fold(OccupancyAccumulator& acc, PassRays&& rays) { acc.add(rays); }
+  std::unique_ptr<OccupancyAccumulator> fresh() const { return std::make_unique<OccupancyAccumulator>(params_); }
+
   // OctoMap's keys hold +-32768 leaves around 0 of the map (the run's map origin): a ray with an
   // end beyond would be dropped without a word (an empty map.bt for UTM poses before the map
   // origin). Every ray the stage casts must have both ends within 32767 leaves of the origin (one
@@ -101,10 +107,6 @@ class FuseOctoMapStage final : public Stage {
   // An empty tree of the same resolution: only its key geometry is used, by cast_pass on any
   // thread, while the accumulator is updated in pass order.
   octomap::OcTree caster_;
-  OccupancyAccumulator cells_;
-  struct Work final : StageWork {
-    PassRays rays;
-  };
 };
 }  // namespace
 

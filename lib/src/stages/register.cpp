@@ -388,11 +388,11 @@ class RegisterStage final : public Stage {
     const PipelineConfig& cfg = *ctx.config;
     T_V_N_ = make_transform(cfg.mount.translation, cfg.mount.rpy, cfg.rpy_order);
   }
-  bool concurrent() const override { return true; }
-  int stream_reach() const override { return 1; }  // the previous line's encoder reading
+  StageKind kind() const override { return StageKind::kLabeller; }
+  int reach() const override { return 1; }  // the previous line's encoder reading
   // The run's poses are relative to its map origin (Pipeline::prepare, pcdp/core/georef.hpp): every
   // coordinate placed here is too, computed in double, whatever the pose file's magnitude.
-  void process(Pass& pass, StageReport& report) override {
+  void label(Pass& pass, StageReport& report) const override {
     register_pass(pass, params_, ctx_.config->sensor, T_V_N_, ctx_.poses.get(), ctx_.config->pose_sigma,
                   ctx_.config->rpy_order);
     report.metrics["lines"] += static_cast<double>(pass.line_count());
@@ -417,7 +417,9 @@ StageInfo register_stage_info() {
             p.covariance = sc.options.get_bool("covariance");
             p.blind_lines = static_cast<int>(sc.options.get_int("blind_lines"));
             return std::make_unique<RegisterStage>(p, ctx);
-          }};
+          },
+          /*needs=*/{},
+          /*provides=*/{kRegisteredPoints}};
 }
 
 }  // namespace pcdp

@@ -521,14 +521,14 @@ namespace {
 class RejectMixedPixelsStage final : public Stage {
  public:
   RejectMixedPixelsStage(MixedPixelParams p, const RunContext& ctx) : params_(p), sensor_(ctx.config->sensor) {}
-  bool concurrent() const override { return true; }
+  StageKind kind() const override { return StageKind::kLabeller; }
   // Across lines it looks `window` lines (kObjectReach for a spike's object) each way, plus one
   // to read a nod reversal at the last of them.
-  int stream_reach() const override {
+  int reach() const override {
     if (!params_.across_lines) return 0;
     return std::max(params_.window, params_.spikes ? static_cast<int>(kObjectReach) : 0) + 1;
   }
-  void process(Pass& pass, StageReport&) override { reject_mixed_pixels(pass, params_, sensor_); }
+  void label(Pass& pass, StageReport&) const override { reject_mixed_pixels(pass, params_, sensor_); }
 
  private:
   MixedPixelParams params_;

@@ -267,9 +267,9 @@ namespace {
 class RejectOcclusionStage final : public Stage {
  public:
   RejectOcclusionStage(OcclusionParams p, const RunContext& ctx) : params_(p), sensor_(ctx.config->sensor) {}
-  bool concurrent() const override { return true; }
-  int stream_reach() const override { return params_.across_lines ? params_.window + 1 : 0; }
-  void process(Pass& pass, StageReport& report) override {
+  StageKind kind() const override { return StageKind::kLabeller; }
+  int reach() const override { return params_.across_lines ? params_.window + 1 : 0; }
+  void label(Pass& pass, StageReport& report) const override {
     const OcclusionCounts c = reject_occlusion(pass, params_, sensor_);
     report.metrics["suspects"] += static_cast<double>(c.suspects);
     report.metrics["repaired"] += static_cast<double>(c.repaired);

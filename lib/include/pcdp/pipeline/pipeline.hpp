@@ -1,6 +1,7 @@
 // Prepare, then execute. prepare() validates the whole pipeline (configuration, stage rules,
-// the pose file) and reads no scan; run() streams the passes through the stages one at a time
-// and writes the outputs atomically.
+// the pose file) and reads no scan; run() streams the passes through the stages, scheduled by
+// what each stage is (Stage::kind, lib/src/pipeline/scheduler.hpp), and writes the outputs
+// atomically.
 #pragma once
 
 #include <functional>
@@ -29,8 +30,8 @@ struct RunSummary {
   std::vector<std::string> warnings;
   double seconds = 0.0;
   unsigned threads = 1;
-  /// The run's phases in order ("prepass <stage>" for each stage that needs every pass first,
-  /// "passes", "finish": writing the products): wall time and the process's CPU time over it.
+  /// The run's phases in order ("prepass <stage>": the evidence of each two-phase stage,
+  /// "passes", "finish": writing the products, "digest"): wall time and the process's CPU time over it.
   /// With as many cores as threads, threads x seconds - cpu_seconds is the core time the phase
   /// left idle.
   struct Phase {
@@ -66,16 +67,17 @@ using ProgressFn = std::function<void(const ProgressEvent&)>;
 
 class Pipeline {
  public:
-  /// Builds every stage and checks the rules between them; loads the pose file. Throws
-  /// ConfigError / InputError. Reads no scan.
-  static Pipeline prepare(PipelineConfig config);
+  /// Builds every stage (its type looked up in `stages`: an embedder may pass builtin_stages()
+  /// plus its own) and checks the rules between them (check_stage_order, one writer per product);
+  /// loads the pose file. Throws ConfigError / InputError. Reads no scan.
+  static Pipeline prepare(PipelineConfig config, const std::vector<StageInfo>& stages = builtin_stages());
 
   const PipelineConfig& config() const { return *config_; }
   /// Streams every pass through the stages, writes returns.pcd, cloud.pcd, the stages' products
   /// and report.json into a staging folder, then swaps it with output_dir (io::StagedOutputs:
   /// the complete old or new set, whatever fails or is killed). With threads > 1, passes are
-  /// processed on that many worker threads (at most threads + 1 passes in memory) and applied in
-  /// pass order: the outputs are identical whatever the thread count (Stage::concurrent/split).
+  /// labelled and collected on that many worker threads (at most threads + 1 passes in memory)
+  /// and merged in pass order: the outputs are identical whatever the thread count.
   /// Progress events come from the calling thread.
   RunSummary run(const ProgressFn& progress = {}, unsigned threads = 1);
 
@@ -85,6 +87,11 @@ class Pipeline {
   RunContext context_;
   std::vector<std::unique_ptr<Stage>> stages_;
 };
+
+/// ConfigError naming the stage unless the stage list is in an order that works: every type known
+/// in `stages`, each of a stage's StageInfo::needs provided by a stage before it, each thing
+/// provided by one stage only (e.g. one `register`, before every stage that needs registered points).
+void check_stage_order(const PipelineConfig& config, const std::vector<StageInfo>& stages = builtin_stages());
 
 /// The report of a run as JSON text (effective configuration, versions, counts, timings).
 std::string report_json(const PipelineConfig& config, const RunSummary& summary);

@@ -1,12 +1,13 @@
-// The stage interface and the explicit registry of built-in stages.
+// The stage contract and the explicit registry of built-in stages (docs/adding_a_stage.md).
 //
 // A stage is one header + one source + one line in registry.cpp + one test file. Stages see one
-// pass at a time (passes are streamed); fusion stages accumulate across passes and write their
-// products in finish().
+// pass at a time (passes are streamed); a stage says what it is (StageKind) and the pipeline
+// schedules it.
 #pragma once
 
 #include <functional>
 #include <map>
+#include <stdexcept>
 #include <memory>
 #include <string>
 #include <vector>
@@ -34,7 +35,7 @@ struct StageReport {
   std::vector<std::string> warnings;
 };
 
-/// Where a stage may write products (fusion outputs); paths are temporary until the run commits.
+/// The output folder's staging (io::StagedOutputs): temporary paths, renamed on commit.
 class OutputSink {
  public:
   virtual ~OutputSink() = default;
@@ -42,65 +43,122 @@ class OutputSink {
   virtual std::string staged_path(const std::string& filename) = 0;
 };
 
-/// The result of a stage's per-pass computation (Stage::compute), applied later in pass order.
-struct StageWork {
-  virtual ~StageWork() = default;
+/// What an accumulator collects from passes (Stage::collect) and folds (Stage::merge): the stage's
+/// own type, downcast by the stage alone.
+struct Partial {
+  virtual ~Partial() = default;
 };
 
-/// How the pipeline may run a stage on several passes at once (threads, identical results):
-///  - concurrent(): process() reads no state that changes between passes, so it may run on
-///    different passes at the same time (register, the reject stages, check_consistency after its
-///    prepass);
-///  - split(): the stage accumulates across passes (fusion) but separates the costly per-pass
-///    part, compute() (const, any thread, reads the pass as it is at the stage's place in the
-///    chain), from apply(), which updates the stage's state and runs in pass order;
-///  - neither: process() runs in pass order on one thread.
+/// One independent piece of the products of an accumulator: `write` writes `files` (product names
+/// the stage declared) to `staged` (their temporary paths, in the same order). The writers of every
+/// accumulator run at the same time when the run has threads, each with its own report (merged
+/// into the stage's in order); a writer may hand tasks to `share` (threads with no writer left
+/// help). Writers of one stage may run concurrently: they only read what finish() handed them.
+struct ProductWriter {
+  std::vector<std::string> files;
+  std::function<void(const std::vector<std::string>& staged, StageReport& report, WorkShare& share)> write;
+};
+
+/// What a stage is; the pipeline picks the schedule from it (docs/adding_a_stage.md).
+enum class StageKind {
+  kLabeller,     ///< label(): a pure function of one pass (or of a window of lines: reach())
+  kAccumulator,  ///< collect() per pass, merge() in pass order, finish() -> products
+  kTwoPhase,     ///< an accumulator over every pass first (its evidence); finish() readies label()
+};
+
+/// The stage contract. Six hooks; the pipeline (lib/src/pipeline/scheduler.cpp) owns threads,
+/// ordering, work sharing, streaming and the report's counts:
+///  - kLabeller: label() runs on any thread, passes in any order, several at once;
+///  - kAccumulator: collect() runs on any thread for each pass (const: it reads the pass as the
+///    stages before it left it and must not change the stage); merge() folds the partials in pass
+///    order on one thread; finish() gets the partial of every pass and returns the product writers;
+///  - kTwoPhase: first an evidence phase (the stages before it label each pass, collect() and
+///    merge() as an accumulator), finish() readies the stage, then label() runs like a labeller.
+/// Labels only: a stage never removes a return (docs/data_contract.md).
 class Stage {
  public:
+  /// `products`: the file names the stage writes into the output folder (checked before the run:
+  /// two stages must not write the same product).
+  explicit Stage(std::vector<std::string> products = {}) : products_(std::move(products)) {}
   virtual ~Stage() = default;
-  virtual bool concurrent() const { return false; }
-  /// For the line streaming API (stream.hpp): how many scan lines before and after a line this
-  /// stage's result for it depends on; -1 if it cannot run on a window of lines (it needs every
-  /// line of the pass, or every pass).
-  virtual int stream_reach() const { return -1; }
-  virtual bool split() const { return false; }
-  /// split() stages: the per-pass part; must not change the stage. It may divide its work into
-  /// tasks for `share` (threads with no pass to take run some of them).
-  virtual std::unique_ptr<StageWork> compute(const Pass& /*pass*/, StageReport& /*report*/, WorkShare& /*share*/) const {
+  virtual StageKind kind() const = 0;
+  /// Labellers and two-phase stages: how many scan lines before and after a line its labels
+  /// depend on (the line streaming API, stream.hpp, runs it on windows of lines); -1: the whole pass.
+  virtual int reach() const { return -1; }
+  /// Labellers and two-phase stages: labels (and may fill points, ranges of) one pass in place.
+  /// Pure (const): any thread, any order. Must not change which returns exist.
+  virtual void label(Pass& /*pass*/, StageReport& /*report*/) const {}
+  /// Accumulators and two-phase stages: what one pass contributes. const: any thread, several
+  /// passes at once; the costly per-pass part belongs here. May divide its work into tasks for
+  /// `share` (threads with no pass to take run some).
+  virtual std::unique_ptr<Partial> collect(const Pass& /*pass*/, StageReport& /*report*/, WorkShare& /*share*/) const {
     return nullptr;
   }
-  /// split() stages: folds one pass's work into the stage's state, in pass order.
-  virtual void apply(std::unique_ptr<StageWork> /*work*/, StageReport& /*report*/) {}
-  /// Processes one pass in place: may set labels, points, ranges. Must not change which
-  /// returns exist (every input return is kept exactly once, docs/data_contract.md).
-  virtual void process(Pass& pass, StageReport& report) = 0;
-  /// After the last pass: write products, add run-level metrics.
-  virtual void finish(OutputSink& /*sink*/, StageReport& /*report*/) {}
-  /// The file names finish() writes into the output folder (checked before the run: two stages
-  /// must not write the same product).
-  virtual std::vector<std::string> products() const { return {}; }
-  /// Stages whose products can be written independently split finish() into parts; with
-  /// threads, the pipeline runs the parts of every stage at once, each with its own report,
-  /// merged in order. Parts of one stage may run concurrently: they must not change shared
-  /// state. A part may divide its work into tasks for `share` (threads with no part left run
-  /// some of them). By default one part, finish() itself.
-  virtual std::size_t finish_parts() const { return 1; }
-  virtual void finish_part(std::size_t /*part*/, OutputSink& sink, StageReport& report, WorkShare& /*share*/) {
-    finish(sink, report);
+  /// Folds `later` (the partial of passes after those in `into`) into `into`. Associative:
+  /// merge(merge(a, b), c) gives what merge(a, merge(b, c)) gives, so partials of threads, of
+  /// streamed blocks or of shards combine to one result (InOrderPartial below helps when the
+  /// fold's steps do not commute exactly).
+  virtual void merge(Partial& /*into*/, Partial&& /*later*/) const {}
+  /// After the last pass, with the partial of every pass (nullptr for a run without passes).
+  /// Accumulators return the writers of their products(); two-phase stages ready label() and
+  /// return none. May use up to `threads` threads; the result must not depend on how many.
+  virtual std::vector<ProductWriter> finish(std::unique_ptr<Partial> /*all*/, StageReport& /*report*/,
+                                            unsigned /*threads*/) {
+    return {};
   }
-  /// Stages that need evidence from every pass before labelling any (check_consistency) return
-  /// true; the pipeline then first streams every pass through the stages before them and hands it
-  /// to prepass(), then runs the whole chain as usual.
-  virtual bool wants_prepass() const { return false; }
-  virtual void prepass(const Pass& /*pass*/) {}
-  /// Prepass stages may split it like split(): prepass_compute (const, any thread) and
-  /// prepass_apply (in pass order). prepass_split() says they do.
-  virtual bool prepass_split() const { return false; }
-  virtual std::unique_ptr<StageWork> prepass_compute(const Pass& /*pass*/) const { return nullptr; }
-  virtual void prepass_apply(std::unique_ptr<StageWork> /*work*/) {}
-  /// After the prepass has seen every pass, before the first process(): may use up to `threads`
-  /// threads; its result must not depend on how many.
-  virtual void prepass_finish(unsigned /*threads*/) {}
+  const std::vector<std::string>& products() const { return products_; }
+
+ private:
+  std::vector<std::string> products_;
+};
+
+/// Exact, associative partials for folds whose steps do not commute bit for bit (floating-point
+/// sums, clamped updates, top-k lists): the partial that holds the run's first pass keeps the
+/// folded state; any other keeps its passes' items, in pass order, until it is merged into one
+/// that holds the first pass. Folding in pass order then does exactly what folding pass by pass
+/// does, whatever the grouping; memory stays bounded when partials are merged in pass order (the
+/// pipeline does). `fold(State&, Item&&)` folds one pass's item.
+template <class State, class Item>
+struct InOrderPartial : Partial {
+  std::unique_ptr<State> state;  ///< set when the partial holds the first pass
+  std::vector<Item> pending;     ///< items of passes not folded yet, in pass order
+
+  /// The partial of one pass: folded into a new state, make_state(), when `first` (the run's
+  /// first pass).
+  template <class MakeState, class Fold>
+  static std::unique_ptr<InOrderPartial> of(Item&& item, bool first, MakeState&& make_state, Fold&& fold) {
+    auto p = std::make_unique<InOrderPartial>();
+    if (first) {
+      p->state = make_state();
+      fold(*p->state, std::move(item));
+    } else {
+      p->pending.push_back(std::move(item));
+    }
+    return p;
+  }
+  /// Stage::merge for this partial.
+  template <class Fold>
+  void absorb(InOrderPartial&& later, Fold&& fold) {
+    if (later.state) throw std::logic_error("InOrderPartial: a later partial holds the first pass");
+    if (state) {
+      for (Item& it : pending) fold(*state, std::move(it));
+      pending.clear();
+      for (Item& it : later.pending) fold(*state, std::move(it));
+    } else {
+      for (Item& it : later.pending) pending.push_back(std::move(it));
+    }
+    later.pending.clear();
+  }
+  /// For Stage::finish: the state of every pass in the partial (`p` may be null: no pass), folded
+  /// from make_state() when the partial does not hold the first pass.
+  template <class MakeState, class Fold>
+  static std::unique_ptr<State> fold_all(Partial* p, MakeState&& make_state, Fold&& fold) {
+    auto* me = static_cast<InOrderPartial*>(p);
+    std::unique_ptr<State> s = me && me->state ? std::move(me->state) : make_state();
+    if (me)
+      for (Item& it : me->pending) fold(*s, std::move(it));
+    return s;
+  }
 };
 
 /// Shared, read-only resources of a run, loaded in the prepare phase.
@@ -114,12 +172,21 @@ struct RunContext {
   Eigen::Vector3d map_origin = Eigen::Vector3d::Zero();
 };
 
+/// What `register` provides: returns with their map points, sensor origins and labels of what
+/// could not be placed (docs/data_contract.md).
+inline const char* const kRegisteredPoints = "registered points";
+
 struct StageInfo {
   std::string type;
   std::string summary;  ///< one line, for `pcd_pipeline stages`
   OptionSchema schema;
   /// Builds a configured instance; may throw ConfigError for rules across options.
   std::function<std::unique_ptr<Stage>(const StageConfig&, const RunContext&)> create;
+  /// What the stage needs from the stages before it and what it provides to those after it
+  /// (e.g. kRegisteredPoints). Pipeline::prepare checks the order: each need provided by an
+  /// earlier stage, each thing provided by one stage only.
+  std::vector<std::string> needs = {kRegisteredPoints};
+  std::vector<std::string> provides = {};
 };
 
 /// All built-in stages, in one explicit list (registry.cpp). No static self-registration: it
@@ -127,6 +194,8 @@ struct StageInfo {
 const std::vector<StageInfo>& builtin_stages();
 /// nullptr when unknown.
 const StageInfo* find_stage(const std::string& type);
+/// The stage of `type` in `stages`; nullptr when unknown.
+const StageInfo* find_stage(const std::string& type, const std::vector<StageInfo>& stages);
 std::vector<std::string> stage_type_names();
 
 }  // namespace pcdp

@@ -12,8 +12,9 @@
 // finished as soon as the lines it depends on have arrived, no later: lines_ahead() lines after
 // it. It is computed on a window of lines that holds everything its result depends on, so the
 // output is identical to the batch run of the same pass (tests/unit/pipeline/test_stream.cpp checks it).
-// The fusion stages and check_consistency need whole passes; a streaming pipeline must not list
-// them (feed the finished lines to your own map instead).
+// Only labellers with a reach stream (Stage::kind, Stage::reach): accumulators (the fusion
+// stages) and two-phase stages (check_consistency) need whole passes; a streaming pipeline must
+// not list them (feed the finished lines to your own map instead).
 //
 // Coordinates: the finished lines hold doubles in absolute map coordinates (no map origin, unlike
 // a batch run's products: pcdp/core/georef.hpp). With georeferenced poses, subtract an origin of your
@@ -47,7 +48,9 @@ class LineStream {
   /// live). Throws ConfigError naming the first stage that cannot stream.
   /// `block_lines`: finish lines in blocks of this many (each window is computed once per block:
   /// less work per line, block_lines - 1 more lines of delay). 1 = every line as soon as possible.
-  explicit LineStream(PipelineConfig config, std::size_t block_lines = 1);
+  /// `stages`: where the stage types are looked up (builtin_stages() plus an embedder's own).
+  explicit LineStream(PipelineConfig config, std::size_t block_lines = 1,
+                      const std::vector<StageInfo>& stages = builtin_stages());
   ~LineStream();
   LineStream(LineStream&&) noexcept;
   LineStream& operator=(LineStream&&) noexcept;
