@@ -1,11 +1,15 @@
 #include "pcdp/pipeline/options.hpp"
 
+#include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <iomanip>
 #include <sstream>
 #include <stdexcept>
+
+#include "pcdp/core/errors.hpp"
 
 namespace pcdp {
 
@@ -98,6 +102,17 @@ OptionSpec opt_string(std::string name, std::string def, std::string doc) {
   s.default_value = std::move(def);
   s.doc = std::move(doc);
   return s;
+}
+
+const OptionSpec* OptionSchema::find(const std::string& name) const {
+  for (const auto& s : *this)
+    if (s.name == name) return &s;
+  return nullptr;
+}
+
+std::string OptionValues::where_given(const std::string& name) const {
+  auto it = given_.find(name);
+  return it == given_.end() ? std::string() : it->second;
 }
 
 const OptionValue& OptionValues::at(const std::string& name) const {
@@ -226,6 +241,65 @@ std::optional<std::string> parse_number_list(const std::string& text, std::size_
   return std::nullopt;
 }
 
+namespace detail {
+
+std::vector<std::string> formula_keys(const OptionSchema& schema, const std::string& formula) {
+  std::vector<std::string> keys;
+  const auto word = [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '.'; };
+  for (std::size_t i = 0; i < formula.size();) {
+    if (!word(formula[i])) {
+      ++i;
+      continue;
+    }
+    std::size_t j = i;
+    while (j < formula.size() && word(formula[j])) ++j;
+    const std::string w = formula.substr(i, j - i);
+    if (schema.find(w) && std::find(keys.begin(), keys.end(), w) == keys.end()) keys.push_back(w);
+    i = j;
+  }
+  return keys;
+}
+
+void throw_rule_broken(const OptionSchema& schema, const OptionRule& rule, const OptionValues& values,
+                       const std::string& detail) {
+  const auto value_of = [&](const std::string& key) {
+    if (values.has(key)) return values.all().at(key);
+    const OptionSpec* s = schema.find(key);
+    return s ? s->default_value : OptionValue(std::string("?"));
+  };
+  // Where: the last of the rule's keys that was given (the one that broke it, most likely).
+  std::string where = values.where();
+  for (const auto& k : rule.keys)
+    if (values.given(k) && !values.where_given(k).empty()) where = values.where_given(k);
+  std::string text;
+  if (rule.message.empty()) {
+    text = "rule '" + rule.formula + "' is broken: ";
+    for (std::size_t i = 0; i < rule.keys.size(); ++i) {
+      const OptionSpec* s = schema.find(rule.keys[i]);
+      text += (i ? ", " : "") + rule.keys[i] + " = " + format_value(value_of(rule.keys[i])) +
+              (s && !s->unit.empty() ? " " + s->unit : "");
+    }
+    if (!rule.why.empty()) text += " (" + rule.why + ")";
+  } else {
+    for (std::size_t i = 0; i < rule.message.size(); ++i) {
+      const std::size_t close = rule.message[i] == '{' ? rule.message.find('}', i) : std::string::npos;
+      const std::string key = close == std::string::npos ? "" : rule.message.substr(i + 1, close - i - 1);
+      if (!key.empty() && schema.find(key)) {
+        text += format_value(value_of(key));
+        i = close;
+      } else {
+        text += rule.message[i];
+      }
+    }
+  }
+  if (!detail.empty()) text += " (" + detail + ")";
+  std::string msg = where.empty() ? "" : where + ": ";
+  if (!values.what().empty()) msg += values.what() + ": ";
+  throw ConfigError(msg + text);
+}
+
+}  // namespace detail
+
 std::string describe_schema(const OptionSchema& schema) {
   std::ostringstream os;
   std::size_t w = 6;
@@ -239,6 +313,10 @@ std::string describe_schema(const OptionSchema& schema) {
     os << std::left << std::setw(static_cast<int>(w) + 2) << s.name << std::setw(8)
        << option_type_name(s.type) << std::setw(14) << def << std::setw(20) << s.bounds_text()
        << std::setw(7) << (s.unit.empty() ? "-" : s.unit) << s.doc << "\n";
+  }
+  if (!schema.rules.empty()) {
+    os << "\nrules\n";
+    for (const auto& r : schema.rules) os << "  " << r.formula << (r.why.empty() ? "" : ": " + r.why) << "\n";
   }
   return os.str();
 }
@@ -257,6 +335,10 @@ std::string schema_markdown(const OptionSchema& schema) {
     for (std::size_t p = b.find('|'); p != std::string::npos; p = b.find('|', p + 2)) b.replace(p, 1, "\\|");
     os << "| `" << s.name << "` | " << option_type_name(s.type) << " | `" << def << "` | " << (b.empty() ? "" : "`" + b + "`")
        << " | " << (s.unit.empty() ? "" : s.unit) << " | " << s.doc << " |\n";
+  }
+  if (!schema.rules.empty()) {
+    os << "\nRules:\n\n";
+    for (const auto& r : schema.rules) os << "- `" << r.formula << "`" << (r.why.empty() ? "" : ": " + r.why) << "\n";
   }
   return os.str();
 }

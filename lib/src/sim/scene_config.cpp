@@ -1,5 +1,5 @@
-// Scene YAML for the simulator. Uses the same strict block validation as pipelines (config.cpp's
-// helpers are not shared by linkage to keep config.cpp the pipeline's; the rules are the schema).
+// Scene YAML for the simulator. Uses the same strict block validation as pipelines (the helpers of
+// pipeline/config_yaml.cpp, declared below; the rules are the schema).
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -17,7 +17,7 @@
 namespace pcdp {
 
 namespace detail {
-// Defined in config.cpp.
+// Defined in pipeline/config_yaml.cpp.
 OptionValues validate_yaml_block(const std::string& source, const YAML::Node& block, const OptionSchema& schema,
                                  const std::string& what, const std::string& key_prefix);
 YAML::Node parse_yaml(const std::string& text, const std::string& source);

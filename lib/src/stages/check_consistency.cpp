@@ -15,16 +15,18 @@
 
 namespace pcdp {
 
-const OptionSchema& check_consistency_schema() {
-  static const OptionSchema s = {
-      opt_double("resolution", 0.1, 0.01, 10.0, "m", "voxel size of the free-space evidence"),
-      opt_double("margin", 0.5, 0.0, 10.0, "m", "rays mark free space up to this short of their end"),
-      opt_int("min_passes", 1, 1.0, 64.0, "passes", "other passes that must have seen free space through a return"),
-      opt_double("max_range", 30.0, 0.1, 1e4, "m", "longer rays give no free-space evidence"),
-      opt_int("hit_radius", 2, 0.0, 5.0, "voxels", "a return from another pass within this many voxels makes a surface, not free space"),
-  };
-  return s;
+const Options<ConsistencyParams>& check_consistency_options() {
+  using P = ConsistencyParams;
+  static const auto o = Options<P>()
+      .add("resolution", &P::resolution, bounds(0.01, 10), "m", "voxel size of the free-space evidence")
+      .add("margin", &P::margin, bounds(0, 10), "m", "rays mark free space up to this short of their end")
+      .add("min_passes", &P::min_passes, bounds(1, 64), "passes", "other passes that must have seen free space through a return")
+      .add("max_range", &P::max_range, bounds(0.1, 1e4), "m", "longer rays give no free-space evidence")
+      .add("hit_radius", &P::hit_radius, bounds(0, 5), "voxels", "a return from another pass within this many voxels makes a surface, not free space");
+  return o;
 }
+
+const OptionSchema& check_consistency_schema() { return check_consistency_options().schema(); }
 
 namespace {
 class CheckConsistencyStage final : public Stage {
@@ -99,13 +101,7 @@ StageInfo check_consistency_stage_info() {
   return {"check_consistency",
           "label inconsistent the returns other passes saw free space through (needs several passes)",
           check_consistency_schema(), [](const StageConfig& sc, const RunContext& ctx) -> std::unique_ptr<Stage> {
-            const OptionValues& o = sc.options;
-            ConsistencyParams p;
-            p.resolution = o.get_double("resolution");
-            p.margin = o.get_double("margin");
-            p.min_passes = static_cast<int>(o.get_int("min_passes"));
-            p.max_range = o.get_double("max_range");
-            p.hit_radius = static_cast<int>(o.get_int("hit_radius"));
+            const ConsistencyParams p = check_consistency_options().bind(sc.options);
             return std::make_unique<CheckConsistencyStage>(p, sc.name, ctx.map_origin);
           }};
 }

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -17,18 +18,42 @@
 
 namespace pcdp {
 
-const OptionSchema& fuse_elevation_schema() {
-  static const OptionSchema s = {
-      opt_double("resolution", 0.1, 0.001, 1000.0, "m", "cell size of the grid"),
-      opt_double("band", 0.05, 0.001, 100.0, "m", "height band of the top-surface gate (points more than one band below the top band are not fused)"),
-      opt_int("min_support", 2, 1.0, 1000.0, "points", "the surface is the highest height band with at least this many points"),
-      opt_string("extent", "", "xmin,ymin,xmax,ymax in map metres; empty: the grid grows with the data"),
-      opt_double("z_max", 1e9, -1e9, 1e9, "m", "points higher than this (map z) are not fused: ceilings, overhangs, tree crowns"),
-      opt_bool("png", true, "also draw elevation.png"),
-      opt_int("deflate_level", 1, 1.0, 12.0, "", "DEFLATE level of elevation.tif (libdeflate): 1 compresses fastest (2.3x level 6, GDAL's default, on the 8-pass bench grid; 2.4 % larger), 12 smallest"),
-  };
-  return s;
+namespace {
+/// Reads p.extent ("xmin,ymin,xmax,ymax") into p.xmin .. p.ymax and p.has_extent. Returns nullopt
+/// when it is empty or valid, else what is wrong ("" when only the order of the bounds is).
+std::optional<std::string> read_extent(FuseElevationParams& p) {
+  p.has_extent = false;
+  if (p.extent.empty()) return std::nullopt;
+  std::vector<double> v;
+  if (const auto err = parse_number_list(p.extent, 4, v)) return "it " + *err;
+  p.xmin = v[0], p.ymin = v[1], p.xmax = v[2], p.ymax = v[3];
+  if (!(p.xmax > p.xmin) || !(p.ymax > p.ymin)) return std::string();
+  p.has_extent = true;
+  return std::nullopt;
 }
+}  // namespace
+
+const Options<FuseElevationParams>& fuse_elevation_options() {
+  using P = FuseElevationParams;
+  static const auto o = Options<P>()
+      .add("resolution", &P::resolution, bounds(0.001, 1000), "m", "cell size of the grid")
+      .add("band", &P::band, bounds(0.001, 100), "m", "height band of the top-surface gate (points more than one band below the top band are not fused)")
+      .add("min_support", &P::min_support, bounds(1, 1000), "points", "the surface is the highest height band with at least this many points")
+      .add("extent", &P::extent, "xmin,ymin,xmax,ymax in map metres; empty: the grid grows with the data")
+      .add("z_max", &P::z_max, bounds(-1e9, 1e9), "m", "points higher than this (map z) are not fused: ceilings, overhangs, tree crowns")
+      .add("png", &P::png, "also draw elevation.png")
+      .add("deflate_level", &P::deflate_level, bounds(1, 12), "", "DEFLATE level of elevation.tif (libdeflate): 1 compresses fastest (2.3x level 6, GDAL's default, on the 8-pass bench grid; 2.4 % larger), 12 smallest")
+      .rule("extent is empty or xmin,ymin,xmax,ymax with xmax > xmin and ymax > ymin",
+            [](const P& p) {
+              P q = p;
+              return read_extent(q);
+            },
+            "a rectangle in map metres",
+            "option 'extent' = '{extent}' must be xmin,ymin,xmax,ymax in metres with xmax > xmin and ymax > ymin");
+  return o;
+}
+
+const OptionSchema& fuse_elevation_schema() { return fuse_elevation_options().schema(); }
 
 namespace {
 /// The points of a pass that go into the grid, with their vertical variance.
@@ -239,25 +264,8 @@ StageInfo fuse_elevation_stage_info() {
           "state elevation.state.tif, .png)",
           fuse_elevation_schema(),
           [](const StageConfig& sc, const RunContext& ctx) -> std::unique_ptr<Stage> {
-            const OptionValues& o = sc.options;
-            FuseElevationParams p;
-            p.resolution = o.get_double("resolution");
-            p.band = o.get_double("band");
-            p.png = o.get_bool("png");
-            p.deflate_level = static_cast<int>(o.get_int("deflate_level"));
-            p.z_max = o.get_double("z_max");
-            p.min_support = static_cast<std::uint32_t>(o.get_int("min_support"));
-            const std::string ext = o.get_string("extent");
-            if (!ext.empty()) {
-              std::vector<double> v;
-              const auto err = parse_number_list(ext, 4, v);
-              if (!err) p.xmin = v[0], p.ymin = v[1], p.xmax = v[2], p.ymax = v[3];
-              if (err || !(p.xmax > p.xmin) || !(p.ymax > p.ymin))
-                throw ConfigError(sc.where + ": stage '" + sc.name + "' (fuse_elevation): option 'extent' = '" + ext +
-                                  "' must be xmin,ymin,xmax,ymax in metres with xmax > xmin and ymax > ymin" +
-                                  (err ? " (it " + *err + ")" : ""));
-              p.has_extent = true;
-            }
+            FuseElevationParams p = fuse_elevation_options().bind(sc.options);
+            read_extent(p);
             p.origin_x = ctx.map_origin.x();
             p.origin_y = ctx.map_origin.y();
             p.origin_z = ctx.map_origin.z();

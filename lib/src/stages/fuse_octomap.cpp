@@ -13,19 +13,31 @@
 
 namespace pcdp {
 
-const OptionSchema& fuse_octomap_schema() {
-  static const OptionSchema s = {
-      opt_double("resolution", 0.1, 0.001, 100.0, "m", "leaf size of the OctoMap"),
-      opt_double("max_range", -1.0, -1.0, 1e4, "m", "rays are cut here and mark only free space (-1: unlimited)"),
-      opt_double("prob_hit", 0.7, 0.5, 1.0, "", "sensor model: occupancy probability of a hit (OctoMap default)"),
-      opt_double("prob_miss", 0.4, 0.0, 0.5, "", "sensor model: occupancy probability of a miss (OctoMap default)"),
-      opt_double("clamping_min", 0.1192, 0.0, 1.0, "", "lower clamping threshold (OctoMap default)"),
-      opt_double("clamping_max", 0.971, 0.0, 1.0, "", "upper clamping threshold (OctoMap default)"),
-      opt_double("occupancy_threshold", 0.5, 0.0, 1.0, "", "a node is occupied above this probability (OctoMap default)"),
-      opt_bool("write_ot", false, "also write map.ot (full probabilities)"),
-  };
-  return s;
+/// The options of `fuse_octomap`: the OctoMap's sensor model and whether map.ot is written.
+struct FuseOctoMapParams : OctoMapParams {
+  bool write_ot = false;
+};
+
+namespace {
+const Options<FuseOctoMapParams>& fuse_octomap_options() {
+  using P = FuseOctoMapParams;
+  static const auto o = Options<P>()
+      .add("resolution", &P::resolution, bounds(0.001, 100), "m", "leaf size of the OctoMap")
+      .add("max_range", &P::max_range, bounds(-1, 1e4), "m", "rays are cut here and mark only free space (-1: unlimited)")
+      .add("prob_hit", &P::prob_hit, bounds(0.5, 1), "", "sensor model: occupancy probability of a hit (OctoMap default)")
+      .add("prob_miss", &P::prob_miss, bounds(0, 0.5), "", "sensor model: occupancy probability of a miss (OctoMap default)")
+      .add("clamping_min", &P::clamping_min, bounds(0, 1), "", "lower clamping threshold (OctoMap default)")
+      .add("clamping_max", &P::clamping_max, bounds(0, 1), "", "upper clamping threshold (OctoMap default)")
+      .add("occupancy_threshold", &P::occupancy_threshold, bounds(0, 1), "", "a node is occupied above this probability (OctoMap default)")
+      .add("write_ot", &P::write_ot, "also write map.ot (full probabilities)")
+      .rule("clamping_min < clamping_max", [](const P& p) { return p.clamping_min < p.clamping_max; },
+            "the clamping thresholds bound the occupancy from below and above",
+            "option 'clamping_min' = {clamping_min} must be less than 'clamping_max' = {clamping_max}");
+  return o;
 }
+}  // namespace
+
+const OptionSchema& fuse_octomap_schema() { return fuse_octomap_options().schema(); }
 
 namespace {
 class FuseOctoMapStage final : public Stage {
@@ -113,20 +125,8 @@ class FuseOctoMapStage final : public Stage {
 StageInfo fuse_octomap_stage_info() {
   return {"fuse_octomap", "every pass into one OctoMap, a sensor origin per return, batched per pass (map.bt)",
           fuse_octomap_schema(), [](const StageConfig& sc, const RunContext& ctx) -> std::unique_ptr<Stage> {
-            const OptionValues& o = sc.options;
-            OctoMapParams p;
-            p.resolution = o.get_double("resolution");
-            p.max_range = o.get_double("max_range");
-            p.prob_hit = o.get_double("prob_hit");
-            p.prob_miss = o.get_double("prob_miss");
-            p.clamping_min = o.get_double("clamping_min");
-            p.clamping_max = o.get_double("clamping_max");
-            p.occupancy_threshold = o.get_double("occupancy_threshold");
-            if (p.clamping_min >= p.clamping_max)
-              throw ConfigError(sc.where + ": stage '" + sc.name + "' (fuse_octomap): option 'clamping_min' = " +
-                                format_value(p.clamping_min) + " must be less than 'clamping_max' = " +
-                                format_value(p.clamping_max));
-            return std::make_unique<FuseOctoMapStage>(p, o.get_bool("write_ot"), sc.name, ctx.map_origin);
+            const FuseOctoMapParams p = fuse_octomap_options().bind(sc.options);
+            return std::make_unique<FuseOctoMapStage>(p, p.write_ot, sc.name, ctx.map_origin);
           }};
 }
 

@@ -12,17 +12,18 @@
 
 namespace pcdp {
 
-const OptionSchema& register_schema() {
-  static const OptionSchema s = {
-      opt_bool("skew_correction", true,
-               "give each return the nod angle at its own stamp, interpolated from the per-line encoder readings"),
-      opt_double("max_pose_gap", 1.0, 0.0, std::nullopt, "s",
-                 "returns inside a pose-file gap longer than this get no_pose (0: never)"),
-      opt_bool("covariance", true, "propagate each point's 3x3 covariance (sensor and pose_sigma) to cloud.pcd"),
-      opt_int("blind_lines", 5, 0.0, 1e6, "lines", "warn of this many consecutive lines without any return (0: never)"),
-  };
-  return s;
+const Options<RegisterParams>& register_options() {
+  using P = RegisterParams;
+  static const auto o = Options<P>()
+      .add("skew_correction", &P::skew_correction,
+           "give each return the nod angle at its own stamp, interpolated from the per-line encoder readings")
+      .add("max_pose_gap", &P::max_pose_gap, at_least(0), "s", "returns inside a pose-file gap longer than this get no_pose (0: never)")
+      .add("covariance", &P::covariance, "propagate each point's 3x3 covariance (sensor and pose_sigma) to cloud.pcd")
+      .add("blind_lines", &P::blind_lines, bounds(0, 1e6), "lines", "warn of this many consecutive lines without any return (0: never)");
+  return o;
 }
+
+const OptionSchema& register_schema() { return register_options().schema(); }
 
 namespace {
 
@@ -411,11 +412,7 @@ StageInfo register_stage_info() {
           "raw returns -> map frame: range calibration, skew correction, mount and pose transforms",
           register_schema(),
           [](const StageConfig& sc, const RunContext& ctx) -> std::unique_ptr<Stage> {
-            RegisterParams p;
-            p.skew_correction = sc.options.get_bool("skew_correction");
-            p.max_pose_gap = sc.options.get_double("max_pose_gap");
-            p.covariance = sc.options.get_bool("covariance");
-            p.blind_lines = static_cast<int>(sc.options.get_int("blind_lines"));
+            const RegisterParams p = register_options().bind(sc.options);
             return std::make_unique<RegisterStage>(p, ctx);
           },
           /*needs=*/{},

@@ -9,28 +9,33 @@
 
 namespace pcdp {
 
-const OptionSchema& reject_mixed_pixels_schema() {
-  static const OptionSchema s = {
-      opt_int("window", 8, 1.0, 100.0, "returns", "how far to search on each side for neighbours"),
-      opt_double("jump_min", 0.1, 0.0, 100.0, "m", "smallest range step between the two sides that makes an edge"),
-      opt_double("jump_ratio", 0.015, 0.0, 10.0, "", "... or this fraction of the near range, if larger"),
-      opt_double("range_tolerance", 0.01, 0.0, 10.0, "m", "a return within this (+ ratio * r + 3 range_sigma) of a surface is on it"),
-      opt_double("range_tolerance_ratio", 0.002, 0.0, 1.0, "", "relative part of the tolerance"),
-      opt_double("edge_factor", 1.5, 0.1, 100.0, "", "a strong edge: the range changes this many times faster across the return than within each side"),
-      opt_double("weak_edge_factor", 0.8, 0.1, 100.0, "", "a weak edge (flagged only where the return is not smooth in the other direction)"),
-      opt_double("max_angle", 0.9, 0.0, 1.5708, "rad", "largest angle between the beam and the segment to a neighbour"),
-      opt_double("amplitude_ratio", 0.3, 0.0, 10.0, "", "a mixture may be this much brighter than predicted (relative)"),
-      opt_double("amplitude_slack", 8.0, 0.0, 255.0, "", "... plus this (amplitude units)"),
-      opt_bool("across_lines", true, "also look across scan lines (same beam)"),
-      opt_int("max_span", 6, 2.0, 100.0, "returns", "the two sides' nearest neighbours may be at most this many steps apart"),
-      opt_double("amplitude_saturation", 255.0, 0.0, 1e9, "", "amplitudes at or above this are clipped: the mixing test is skipped"),
-      opt_bool("one_sided", true, "beside a void, flag returns that break sharply from their one visible surface"),
-      opt_bool("spikes", true, "flag a run of returns a few beams wide in front of the surface on both sides along its line whose range changes across lines (a mixture with a thin object)"),
-      opt_int("spike_width", 3, 1.0, 16.0, "returns", "widest run along a line the spike test takes for a thin object (or a mixture with one)"),
-      opt_double("spike_dim_ratio", 0.9, 0.0, 1.0, "", "a spike that keeps its range across lines is still a mixture if dimmer than this times its object's brightest return there, and brighter than the surface behind (0: off)"),
-  };
-  return s;
+const Options<MixedPixelParams>& reject_mixed_pixels_options() {
+  using P = MixedPixelParams;
+  static const auto o = Options<P>()
+      .add("window", &P::window, bounds(1, 100), "returns", "how far to search on each side for neighbours")
+      .add("jump_min", &P::jump_min, bounds(0, 100), "m", "smallest range step between the two sides that makes an edge")
+      .add("jump_ratio", &P::jump_ratio, bounds(0, 10), "", "... or this fraction of the near range, if larger")
+      .add("range_tolerance", &P::range_tolerance, bounds(0, 10), "m", "a return within this (+ ratio * r + 3 range_sigma) of a surface is on it")
+      .add("range_tolerance_ratio", &P::range_tolerance_ratio, bounds(0, 1), "", "relative part of the tolerance")
+      .add("edge_factor", &P::edge_factor, bounds(0.1, 100), "", "a strong edge: the range changes this many times faster across the return than within each side")
+      .add("weak_edge_factor", &P::weak_edge_factor, bounds(0.1, 100), "", "a weak edge (flagged only where the return is not smooth in the other direction)")
+      .add("max_angle", &P::max_angle, bounds(0, 1.5708), "rad", "largest angle between the beam and the segment to a neighbour")
+      .add("amplitude_ratio", &P::amplitude_ratio, bounds(0, 10), "", "a mixture may be this much brighter than predicted (relative)")
+      .add("amplitude_slack", &P::amplitude_slack, bounds(0, 255), "", "... plus this (amplitude units)")
+      .add("across_lines", &P::across_lines, "also look across scan lines (same beam)")
+      .add("max_span", &P::max_span, bounds(2, 100), "returns", "the two sides' nearest neighbours may be at most this many steps apart")
+      .add("amplitude_saturation", &P::amplitude_saturation, bounds(0, 1e9), "", "amplitudes at or above this are clipped: the mixing test is skipped")
+      .add("one_sided", &P::one_sided, "beside a void, flag returns that break sharply from their one visible surface")
+      .add("spikes", &P::spikes, "flag a run of returns a few beams wide in front of the surface on both sides along its line whose range changes across lines (a mixture with a thin object)")
+      .add("spike_width", &P::spike_width, bounds(1, 16), "returns", "widest run along a line the spike test takes for a thin object (or a mixture with one)")
+      .add("spike_dim_ratio", &P::spike_dim_ratio, bounds(0, 1), "", "a spike that keeps its range across lines is still a mixture if dimmer than this times its object's brightest return there, and brighter than the surface behind (0: off)")
+      .rule("weak_edge_factor <= edge_factor", [](const P& p) { return p.weak_edge_factor <= p.edge_factor; },
+            "a weak edge is a lower bar than a strong one",
+            "option 'weak_edge_factor' = {weak_edge_factor} must not exceed 'edge_factor' = {edge_factor}");
+  return o;
 }
+
+const OptionSchema& reject_mixed_pixels_schema() { return reject_mixed_pixels_options().schema(); }
 
 namespace {
 /// The smallest range step that makes an edge at range r (jump_min, or jump_ratio of r if larger).
@@ -541,28 +546,7 @@ StageInfo reject_mixed_pixels_stage_info() {
           "mixed pixels (veil points) between foreground and background: geometry and amplitude mixing",
           reject_mixed_pixels_schema(),
           [](const StageConfig& sc, const RunContext& ctx) -> std::unique_ptr<Stage> {
-            const OptionValues& o = sc.options;
-            MixedPixelParams p;
-            p.window = static_cast<int>(o.get_int("window"));
-            p.jump_min = o.get_double("jump_min");
-            p.jump_ratio = o.get_double("jump_ratio");
-            p.range_tolerance = o.get_double("range_tolerance");
-            p.range_tolerance_ratio = o.get_double("range_tolerance_ratio");
-            p.max_angle = o.get_double("max_angle");
-            p.edge_factor = o.get_double("edge_factor");
-            p.weak_edge_factor = o.get_double("weak_edge_factor");
-            if (p.weak_edge_factor > p.edge_factor)
-              throw ConfigError(sc.where + ": stage '" + sc.name + "' (reject_mixed_pixels): option 'weak_edge_factor' = " +
-                                format_value(p.weak_edge_factor) + " must not exceed 'edge_factor' = " + format_value(p.edge_factor));
-            p.amplitude_ratio = o.get_double("amplitude_ratio");
-            p.amplitude_slack = o.get_double("amplitude_slack");
-            p.across_lines = o.get_bool("across_lines");
-            p.max_span = static_cast<int>(o.get_int("max_span"));
-            p.amplitude_saturation = o.get_double("amplitude_saturation");
-            p.one_sided = o.get_bool("one_sided");
-            p.spikes = o.get_bool("spikes");
-            p.spike_width = static_cast<int>(o.get_int("spike_width"));
-            p.spike_dim_ratio = o.get_double("spike_dim_ratio");
+            const MixedPixelParams p = reject_mixed_pixels_options().bind(sc.options);
             return std::make_unique<RejectMixedPixelsStage>(p, ctx);
           }};
 }

@@ -9,21 +9,26 @@
 
 namespace pcdp {
 
-const OptionSchema& reject_occlusion_schema() {
-  static const OptionSchema s = {
-      opt_int("window", 6, 1.0, 100.0, "returns", "how far to search on each side for stable neighbours"),
-      opt_int("stable", 2, 1.0, 10.0, "returns", "stable neighbours used on each side"),
-      opt_double("amplitude_margin", 6.0, 0.0, 255.0, "", "suspect below min_amplitude + this; surely weak below min_amplitude - this"),
-      opt_double("jump_min", 0.15, 0.0, 100.0, "m", "smallest range step between the sides that makes an edge"),
-      opt_double("jump_ratio", 0.05, 0.0, 10.0, "", "... or this fraction of the near range, if larger"),
-      opt_double("range_tolerance", 0.05, 0.0, 100.0, "m", "a range within this of a side's extrapolation fits it"),
-      opt_double("range_tolerance_ratio", 0.01, 0.0, 1.0, "", "plus this fraction of the range"),
-      opt_bool("across_lines", true, "also look across scan lines (same beam), where the nod crosses the edge"),
-      opt_bool("repair", false, "replace a false range by the nearer stable neighbour's instead of rejecting it"),
-      opt_bool("low_amplitude", true, "label low_amplitude the weak returns away from dipping edges"),
-  };
-  return s;
+const Options<OcclusionParams>& reject_occlusion_options() {
+  using P = OcclusionParams;
+  static const auto o = Options<P>()
+      .add("window", &P::window, bounds(1, 100), "returns", "how far to search on each side for stable neighbours")
+      .add("stable", &P::stable, bounds(1, 10), "returns", "stable neighbours used on each side")
+      .add("amplitude_margin", &P::amplitude_margin, bounds(0, 255), "", "suspect below min_amplitude + this; surely weak below min_amplitude - this")
+      .add("jump_min", &P::jump_min, bounds(0, 100), "m", "smallest range step between the sides that makes an edge")
+      .add("jump_ratio", &P::jump_ratio, bounds(0, 10), "", "... or this fraction of the near range, if larger")
+      .add("range_tolerance", &P::range_tolerance, bounds(0, 100), "m", "a range within this of a side's extrapolation fits it")
+      .add("range_tolerance_ratio", &P::range_tolerance_ratio, bounds(0, 1), "", "plus this fraction of the range")
+      .add("across_lines", &P::across_lines, "also look across scan lines (same beam), where the nod crosses the edge")
+      .add("repair", &P::repair, "replace a false range by the nearer stable neighbour's instead of rejecting it")
+      .add("low_amplitude", &P::low_amplitude, "label low_amplitude the weak returns away from dipping edges")
+      .rule("stable <= window", [](const P& p) { return p.stable <= p.window; },
+            "the stable neighbours are found within the window",
+            "option 'stable' = {stable} must not exceed 'window' = {window}");
+  return o;
 }
+
+const OptionSchema& reject_occlusion_schema() { return reject_occlusion_options().schema(); }
 
 namespace {
 
@@ -286,21 +291,7 @@ StageInfo reject_occlusion_stage_info() {
           "false ranges at range edges of non-coaxial scanners (Liu et al. 2005 amplitude model), and weak returns",
           reject_occlusion_schema(),
           [](const StageConfig& sc, const RunContext& ctx) -> std::unique_ptr<Stage> {
-            const OptionValues& o = sc.options;
-            OcclusionParams p;
-            p.window = static_cast<int>(o.get_int("window"));
-            p.stable = static_cast<int>(o.get_int("stable"));
-            p.amplitude_margin = o.get_double("amplitude_margin");
-            p.jump_min = o.get_double("jump_min");
-            p.jump_ratio = o.get_double("jump_ratio");
-            p.range_tolerance = o.get_double("range_tolerance");
-            p.range_tolerance_ratio = o.get_double("range_tolerance_ratio");
-            p.across_lines = o.get_bool("across_lines");
-            p.repair = o.get_bool("repair");
-            p.low_amplitude = o.get_bool("low_amplitude");
-            if (p.stable > p.window)
-              throw ConfigError(sc.where + ": stage '" + sc.name + "' (reject_occlusion): option 'stable' = " +
-                                std::to_string(p.stable) + " must not exceed 'window' = " + std::to_string(p.window));
+            const OcclusionParams p = reject_occlusion_options().bind(sc.options);
             return std::make_unique<RejectOcclusionStage>(p, ctx);
           }};
 }

@@ -1,5 +1,5 @@
 // The pipeline description: sensor block, mount, poses, inputs, output folder and the ordered
-// list of stage instances. YAML parsing lives in config.cpp and nowhere else.
+// list of stage instances. YAML is read in lib/src/pipeline/config_yaml.cpp and nowhere else.
 #pragma once
 
 #include <Eigen/Core>
@@ -75,7 +75,15 @@ struct PipelineConfig {
   std::vector<std::pair<std::string, OptionValues>> blocks;
 };
 
-/// Schemas of the fixed blocks. Nested keys use dots ("range_calibration.k").
+/// The options of the fixed blocks, bound to the structs above (config_blocks.cpp); the member
+/// initialisers are the defaults. Nested keys use dots ("range_calibration.k").
+const Options<SensorParams>& sensor_options();
+const Options<MountParams>& mount_options();
+const Options<PoseSigma>& pose_sigma_options();
+/// The top-level scalar options of a pipeline (`allow_empty_output`, `crs` as written).
+const Options<PipelineConfig>& top_level_options();
+
+/// Their schemas (for describe, docs and validation).
 const OptionSchema& sensor_schema();
 const OptionSchema& mount_schema();
 const OptionSchema& pose_sigma_schema();

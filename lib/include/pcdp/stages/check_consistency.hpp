@@ -10,6 +10,8 @@
 
 namespace pcdp {
 
+/// The options of `check_consistency`, bound to ConsistencyParams (pcdp/fusion/consistency.hpp).
+const Options<ConsistencyParams>& check_consistency_options();
 const OptionSchema& check_consistency_schema();
 StageInfo check_consistency_stage_info();
 

@@ -17,7 +17,8 @@ struct FuseElevationParams {
   double resolution = 0.1;  ///< m
   double band = 0.05;       ///< m, the height band of the top-surface gate
   std::uint32_t min_support = 2;  ///< points in the highest band that make it the surface
-  bool has_extent = false;  ///< otherwise the grid grows with the data
+  std::string extent;       ///< "xmin,ymin,xmax,ymax" as given; empty: the grid grows with the data
+  bool has_extent = false;  ///< `extent` read into xmin .. ymax; otherwise the grid grows with the data
   double xmin = 0, ymin = 0, xmax = 0, ymax = 0;
   double z_max = 1e9;       ///< m, points above are not fused
   bool png = true;
@@ -32,6 +33,8 @@ struct FuseElevationParams {
 /// the cells within ElevationGrid::kKeyReach of it (UTM coordinates at 1 mm included).
 ElevationGrid make_elevation_grid(const FuseElevationParams& p);
 
+/// The options of `fuse_elevation`, bound to FuseElevationParams.
+const Options<FuseElevationParams>& fuse_elevation_options();
 const OptionSchema& fuse_elevation_schema();
 
 /// Adds the kept points of a registered pass to `grid`. Throws InputError naming the stage, the

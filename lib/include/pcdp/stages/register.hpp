@@ -34,7 +34,9 @@ struct RegisterParams {
 /// Broten & Collier 7.5, or covered): one warning each, naming the file and the line range.
 std::vector<std::string> blind_runs(const Pass& pass, int min_lines);
 
-/// The schema of `register` (drives validation, describe and docs).
+/// The options of `register`, bound to RegisterParams; their schema drives validation, describe
+/// and docs.
+const Options<RegisterParams>& register_options();
 const OptionSchema& register_schema();
 
 /// Pure function: registers `pass` in place (labels, range_cal, nod_at_return, x/y/z, origins).

@@ -80,6 +80,8 @@ struct MixedPixelParams {
   int max_span = 6;                  ///< steps between the two sides' nearest neighbours
 };
 
+/// The options of `reject_mixed_pixels`, bound to MixedPixelParams.
+const Options<MixedPixelParams>& reject_mixed_pixels_options();
 const OptionSchema& reject_mixed_pixels_schema();
 
 /// Plain arrays of registered returns (map frame) for the core algorithm.

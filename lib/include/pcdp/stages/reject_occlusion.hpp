@@ -41,6 +41,9 @@ struct OcclusionParams {
   bool low_amplitude = true;      ///< label low_amplitude away from edges
 };
 
+/// The options of `reject_occlusion`, bound to OcclusionParams (its schema drives validation,
+/// describe and docs).
+const Options<OcclusionParams>& reject_occlusion_options();
 const OptionSchema& reject_occlusion_schema();
 
 struct OcclusionCounts {
