@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "pcdp/core/pass.hpp"
-#include "pcdp/sim/bench_scenes.hpp"
+#include "sim/bench_scenes.hpp"
 #include "pcdp/stages/register.hpp"
 #include "pcdp/stages/reject_mixed_pixels.hpp"
 #include "pcdp/stages/reject_occlusion.hpp"

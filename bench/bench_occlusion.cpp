@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "pcdp/sim/bench_scenes.hpp"
+#include "sim/bench_scenes.hpp"
 #include "quality.hpp"
 #include "pcdp/core/pass.hpp"
 #include "pcdp/stages/register.hpp"

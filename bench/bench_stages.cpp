@@ -10,7 +10,7 @@
 #include "pcdp/fusion/elevation.hpp"
 #include "pcdp/fusion/octomap_fusion.hpp"
 #include "pcdp/core/pass.hpp"
-#include "pcdp/sim/bench_scenes.hpp"
+#include "sim/bench_scenes.hpp"
 #include "pcdp/stages/check_consistency.hpp"
 #include "pcdp/stages/fuse_elevation.hpp"
 #include "pcdp/stages/register.hpp"

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "pcdp/core/pass.hpp"
+#include "pcdp/io/pass_file.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
 #include "pcdp_test_paths.hpp"
 #include "test_support.hpp"

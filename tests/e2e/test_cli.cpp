@@ -18,6 +18,7 @@
 #include "pcdp/io/geotiff.hpp"
 #include "pcdp/import/3dtk.hpp"
 #include "pcdp/core/labels.hpp"
+#include "pcdp/io/pass_file.hpp"
 #include "pcdp/io/pcd.hpp"
 #include "pcdp_test_paths.hpp"
 #include "test_support.hpp"

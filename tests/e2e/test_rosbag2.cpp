@@ -12,6 +12,7 @@
 #include <string>
 
 #include "pcdp/core/pass.hpp"
+#include "pcdp/io/pass_file.hpp"
 #include "pcdp_test_paths.hpp"
 #include "test_support.hpp"
 

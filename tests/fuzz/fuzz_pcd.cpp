@@ -3,6 +3,7 @@
 #include "fuzz_common.hpp"
 #include "pcdp/core/errors.hpp"
 #include "pcdp/core/pass.hpp"
+#include "pcdp/io/pass_file.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string path = fuzz_file(data, size, ".pcd");

@@ -11,6 +11,7 @@
 
 #include "pcdp/core/errors.hpp"
 #include "pcdp/core/pass.hpp"
+#include "pcdp/io/pass_file.hpp"
 #include "pcdp/stages/register.hpp"
 #include "pcdp_test_paths.hpp"
 

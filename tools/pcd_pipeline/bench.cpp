@@ -27,6 +27,7 @@
 #include "pcdp/io/poses.hpp"
 #include "pcdp/fusion/octomap_fusion.hpp"
 #include "pcdp/core/pass.hpp"
+#include "pcdp/io/pass_file.hpp"
 #include "pcdp/pipeline/pipeline.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
 #include "pcdp/stages/register.hpp"

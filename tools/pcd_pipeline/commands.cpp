@@ -19,8 +19,10 @@
 #include "pcdp/core/errors.hpp"
 #include "pcdp/pipeline/pipeline.hpp"
 #include "pcdp/models/calibration.hpp"
+#include "pcdp/io/range_samples.hpp"
 #include "pcdp/sim/evaluate.hpp"
 #include "pcdp/core/pass.hpp"
+#include "pcdp/io/pass_file.hpp"
 #include "pcdp/stages/register.hpp"
 #include "pcdp/core/uncertainty.hpp"
 #include "pcdp/io/atomic_file.hpp"
@@ -392,7 +394,7 @@ int cmd_clean_cloud(const CleanCloudArgs& a) {
 
 int cmd_calibrate_range(const std::string& csv) {
   std::vector<double> y, z;
-  read_range_samples_csv(csv, y, z);
+  io::read_range_samples_csv(csv, y, z);
   RangeCalibration c;
   try {
     c = fit_range_calibration(y, z);
@@ -647,7 +649,7 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
                 r.passes.size(), n, out_dir.c_str());
     for (const auto& note : r.notes) std::printf("  %s\n", note.c_str());
     for (std::size_t k = 0; k < r.passes.size(); ++k) {
-      const io::LineRecovery& rec = r.recovery[k];
+      const pcdp::LineRecovery& rec = r.recovery[k];
       std::printf("  %s: nod origin %.3f,%.3f,%.3f; %zu scan line(s)%s, rebuild error median %.2g m, largest %.2g m",
                   r.passes[k].source.c_str(), rec.nod_origin.x(), rec.nod_origin.y(), rec.nod_origin.z(), rec.lines,
                   rec.organized ? " on one beam grid (organized)" : "", rec.median_residual, rec.max_residual);

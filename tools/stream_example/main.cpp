@@ -13,6 +13,7 @@
 
 #include "pcdp/pipeline/config.hpp"
 #include "pcdp/core/pass.hpp"
+#include "pcdp/io/pass_file.hpp"
 #include "pcdp/pipeline/stream.hpp"
 
 int main(int argc, char** argv) {

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "pcdp/core/pass.hpp"
-#include "pcdp/fusion/voxel_blocks.hpp"
+#include "pcdp/fusion/detail/voxel_blocks.hpp"
 
 namespace pcdp {
 

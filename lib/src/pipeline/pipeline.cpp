@@ -18,6 +18,7 @@
 #include "pcdp/io/outputs.hpp"
 #include "pcdp/io/poses.hpp"
 #include "pcdp/core/pass.hpp"
+#include "pcdp/io/pass_file.hpp"
 #include "pipeline/ordered_parallel.hpp"
 #include "pipeline/scheduler.hpp"
 

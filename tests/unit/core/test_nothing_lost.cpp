@@ -11,7 +11,7 @@
 #include "pcdp/pipeline/config.hpp"
 #include "pcdp/io/pcd.hpp"
 #include "pcdp/pipeline/pipeline.hpp"
-#include "pcdp/sim/bench_scenes.hpp"
+#include "sim/bench_scenes.hpp"
 #include "test_support.hpp"
 
 using namespace pcdp;

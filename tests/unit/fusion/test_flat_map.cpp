@@ -3,7 +3,7 @@
 #include <random>
 #include <unordered_map>
 
-#include "pcdp/fusion/flat_map.hpp"
+#include "pcdp/fusion/detail/flat_map.hpp"
 
 using namespace pcdp;
 

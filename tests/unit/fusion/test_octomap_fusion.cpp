@@ -10,7 +10,7 @@
 #include "pipeline/ordered_parallel.hpp"
 #include "pcdp/fusion/octomap_fusion.hpp"
 #include "pcdp/core/pass.hpp"
-#include "pcdp/sim/bench_scenes.hpp"
+#include "sim/bench_scenes.hpp"
 #include "pcdp/stages/register.hpp"
 
 using namespace pcdp;

@@ -4,7 +4,7 @@
 #include <set>
 #include <tuple>
 
-#include "pcdp/fusion/voxel_blocks.hpp"
+#include "pcdp/fusion/detail/voxel_blocks.hpp"
 
 using namespace pcdp;
 

@@ -82,7 +82,7 @@ TEST(ImportScans, OctomapScanDatFindsItsLinesAndNodAxisAndComesBackWithinTheResi
   io::ImportedScans r = io::import_octomap({kOcto + "scan.dat"}, opt);
   ASSERT_EQ(r.passes.size(), 1u);
   EXPECT_EQ(r.passes[0].size(), 88206u);
-  const io::LineRecovery& rec = r.recovery[0];
+  const pcdp::LineRecovery& rec = r.recovery[0];
   EXPECT_EQ(rec.lines, 491u);  // SOURCE.md: 491 scan lines
   // The points fit a nodding laser about half a metre above the file's origin (derived from the
   // data: the elevation at +-90 degrees is ~6 degrees at 4.8 m on every line, whatever the tilt).

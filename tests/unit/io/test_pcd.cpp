@@ -7,6 +7,7 @@
 #include "pcdp/core/errors.hpp"
 #include "pcdp/io/pcd.hpp"
 #include "pcdp/core/pass.hpp"
+#include "pcdp/io/pass_file.hpp"
 #include "test_support.hpp"
 
 using namespace pcdp;

@@ -15,6 +15,7 @@
 #include "pcdp/io/pcd.hpp"
 #include "pcdp/io/poses.hpp"
 #include "pcdp/core/pass.hpp"
+#include "pcdp/io/pass_file.hpp"
 #include "pcdp_test_paths.hpp"
 #include "test_support.hpp"
 

@@ -12,6 +12,7 @@
 #include "pcdp/io/pcd.hpp"
 #include "pcdp/io/poses.hpp"
 #include "pcdp/core/pass.hpp"
+#include "pcdp/io/pass_file.hpp"
 #include "pcdp/pipeline/pipeline.hpp"
 #include "pcdp/pipeline/stream.hpp"
 #include "pcdp_test_paths.hpp"

@@ -10,7 +10,7 @@
 #include <set>
 
 #include "pcdp/pcl/filters.hpp"
-#include "pcdp/sim/bench_scenes.hpp"
+#include "sim/bench_scenes.hpp"
 #include "pcdp/stages/register.hpp"
 #include "pcdp/core/transforms.hpp"
 

@@ -5,7 +5,7 @@
 #include "pcdp/pipeline/config.hpp"
 #include "pcdp/core/errors.hpp"
 #include "pcdp/core/pass.hpp"
-#include "pcdp/sim/bench_scenes.hpp"
+#include "sim/bench_scenes.hpp"
 #include "pcdp/stages/register.hpp"
 #include "pcdp/stages/reject_occlusion.hpp"
 #include "test_support.hpp"

@@ -6,14 +6,14 @@
 #include <string>
 #include <vector>
 
-#include "pcdp/io/pcd.hpp"
+#include "pcdp/core/field.hpp"
 #include "pcdp/core/labels.hpp"
 
 namespace pcdp {
 
 /// A field of the input that the contract does not name; carried through to returns.pcd.
 struct ExtraField {
-  io::PcdField field;
+  Field field;
   std::vector<std::uint8_t> data;  ///< points * field.bytes(), in pass order
 };
 
@@ -50,18 +50,6 @@ struct Pass {
   bool is_kept(std::size_t i) const { return label[i] == Label::kKept; }
 };
 
-/// Builds a pass from a PCD table, checking the data contract: required fields and their types,
-/// finite values, non-negative ranges, one nod reading per line, stamps increasing along each
-/// line and from line to line, unique (line, beam). Throws InputError naming the file, the field
-/// and the line/beam of the first offence.
-Pass pass_from_table(io::PcdTable&& table, const std::string& source, std::size_t index);
-
-/// The cheap part of read_pass, for checking every pass before the heavy work: the file is a
-/// regular, readable file, its header parses, has the required fields with their types, and
-/// (binary) the data it claims fits in the file. Reads the header only. Throws InputError.
-void check_pass_header(const std::string& path);
-
-/// read_pcd + pass_from_table.
-Pass read_pass(const std::string& path, std::size_t index);
+// Reading a pass from a PCD file (read_pass, check_pass_header): pcdp/io/pass_file.hpp.
 
 }  // namespace pcdp

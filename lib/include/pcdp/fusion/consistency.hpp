@@ -23,8 +23,8 @@
 #include <map>
 #include <vector>
 
-#include "pcdp/fusion/flat_map.hpp"
-#include "pcdp/fusion/voxel_blocks.hpp"
+#include "pcdp/fusion/detail/flat_map.hpp"
+#include "pcdp/fusion/detail/voxel_blocks.hpp"
 
 namespace pcdp {
 

@@ -25,7 +25,7 @@
 #include <string>
 #include <vector>
 
-#include "pcdp/fusion/flat_map.hpp"
+#include "pcdp/fusion/detail/flat_map.hpp"
 
 namespace pcdp {
 

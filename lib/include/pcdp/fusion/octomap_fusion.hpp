@@ -18,7 +18,7 @@
 
 #include <octomap/OcTree.h>
 
-#include "pcdp/fusion/voxel_blocks.hpp"
+#include "pcdp/fusion/detail/voxel_blocks.hpp"
 #include "pcdp/pipeline/work_share.hpp"
 
 #include <cstdint>

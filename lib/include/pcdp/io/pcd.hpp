@@ -10,15 +10,12 @@
 #include <string>
 #include <vector>
 
+#include "pcdp/core/field.hpp"
+
 namespace pcdp::io {
 
-struct PcdField {
-  std::string name;
-  char type = 'F';  ///< 'F' float, 'U' unsigned, 'I' signed
-  int size = 4;     ///< bytes: 1, 2, 4, 8
-  int count = 1;
-  std::size_t bytes() const { return static_cast<std::size_t>(size) * static_cast<std::size_t>(count); }
-};
+/// A PCD field (name, TYPE, SIZE, COUNT): the core type, so that a pass can carry fields through.
+using PcdField = pcdp::Field;
 
 enum class PcdData { kAscii, kBinary, kBinaryCompressed };
 

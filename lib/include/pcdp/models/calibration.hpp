@@ -24,9 +24,6 @@ struct RangeCalibration {
 /// estimate the errors from). Throws InputError.
 RangeCalibration fit_range_calibration(const std::vector<double>& true_distance, const std::vector<double>& measured);
 
-/// Reads a CSV whose header names the columns `true` and `measured` (m; others are ignored).
-void read_range_samples_csv(const std::string& path, std::vector<double>& true_distance, std::vector<double>& measured);
-
 struct MountCalibration {
   Rpy rpy;                    ///< roll and pitch estimated; yaw as given
   double height = 0.0;        ///< m, nod-axis origin above the floor

@@ -10,7 +10,10 @@
 // deterministic for a given sequence of inserts.
 //
 // Coordinates are voxel indices made non-negative, each below 2^21 (callers add an offset and
-// mask, as they did for their hash keys).
+// mask).
+//
+// detail/: implementation that public fusion headers include for their members; not API, may
+// change without notice (docs/architecture.md).
 #pragma once
 
 #include <cstddef>
@@ -18,7 +21,7 @@
 #include <deque>
 #include <vector>
 
-#include "pcdp/fusion/flat_map.hpp"
+#include "pcdp/fusion/detail/flat_map.hpp"
 
 namespace pcdp {
 

@@ -5,6 +5,9 @@
 // `salt` decorrelates tables: iterating one table visits its keys in hash order, and inserting them
 // in that order into another table with the same hash piles them into long probe runs (a pass's
 // cells into the run's map took 13x longer). Give tables that feed each other different salts.
+//
+// detail/: implementation that public fusion headers include for their members; not API, may
+// change without notice (docs/architecture.md).
 #pragma once
 
 #include <cstddef>
