@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "pcdp/core/errors.hpp"
+#include "pcdp/io/pass_file.hpp"
 #include "pipeline/ordered_parallel.hpp"
 
 namespace pcdp::detail {
