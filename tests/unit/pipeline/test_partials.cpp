@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "pcdp/core/pass.hpp"
+#include "pcdp/io/pass_file.hpp"
 #include "pcdp/io/poses.hpp"
 #include "pcdp/pipeline/config.hpp"
 #include "pcdp/pipeline/pipeline.hpp"
