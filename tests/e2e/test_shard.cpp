@@ -162,3 +162,14 @@ TEST(Shard, BadPlansExit2) {
   r = run_cli({"shard-task", w, "sideways", "0"});
   EXPECT_EQ(r.exit_code, 2);
 }
+
+TEST(Shard, TheReduceMakesTheRunLevelChecksOfRun) {
+  const std::string d = pcdp::test::fresh_dir("shard_keeps_nothing");
+  const auto one = run_cli({"run", kPipeline, "-q", "--set", "sensor.range_max=0.2", "--output-dir", d + "/run"});
+  const auto r = run_cli({"shard", kPipeline, "--shards", "2", "--set", "sensor.range_max=0.2", "--work-dir", d + "/w",
+                          "--output-dir", d + "/out", "--local"});
+  EXPECT_EQ(one.exit_code, 3);
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_NE(r.err.find("the run keeps nothing"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(d + "/out"));
+}

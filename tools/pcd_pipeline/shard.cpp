@@ -139,7 +139,7 @@ int run_local(const std::string& w, const ShardPlan& plan) {
       const int rc = WIFEXITED(st) ? WEXITSTATUS(st) : 128;
       if (rc != 0) {
         std::cerr << "pcd_pipeline shard: task " << t << " of phase '" << phase << "' failed (exit " << rc
-                  << "); rerun it: pcd_pipeline shard-task " << w << " " << phase << " " << t << "\n";
+                  << "); rerun it: pcd_pipeline shard-task " << w << " " << phase << (phase == "reduce" ? "" : " " + std::to_string(t)) << "\n";
         return rc;
       }
     }

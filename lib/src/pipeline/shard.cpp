@@ -1,6 +1,7 @@
 #include "pcdp/pipeline/shard.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -531,6 +532,7 @@ RunSummary run_shard_reduce(const std::string& w) {
   std::vector<std::unique_ptr<Partial>> running(ns);
   std::int64_t last_line = -1;
   std::string last_file;
+  double stamp_min = std::numeric_limits<double>::infinity(), stamp_max = -stamp_min;
   for (std::size_t t = 0; t < plan.shards; ++t) {
     const std::string path = part_path(w, "passes", t);
     named(path, [&] {
@@ -546,9 +548,10 @@ RunSummary run_shard_reduce(const std::string& w) {
         ps.kept = h[0];
         const bool any = pio::get<std::uint8_t>(*in[t]) != 0;
         const auto l0 = pio::get<std::int64_t>(*in[t]), l1 = pio::get<std::int64_t>(*in[t]);
-        pio::get<double>(*in[t]);
-        pio::get<double>(*in[t]);
+        const double s0 = pio::get<double>(*in[t]), s1 = pio::get<double>(*in[t]);
         if (any) {
+          stamp_min = std::min(stamp_min, s0);
+          stamp_max = std::max(stamp_max, s1);
           if (l0 <= last_line)
             throw InputError(ps.file + ": field 'line': its first line " + std::to_string(l0) +
                              " is not after the last line " + std::to_string(last_line) + " of " + last_file +
@@ -574,6 +577,9 @@ RunSummary run_shard_reduce(const std::string& w) {
       pio::expect(*in[t], "end");
     });
   }
+  // Every label is final: the run-level checks of `run`, before any product is written.
+  std::vector<std::string> run_warnings;
+  detail::check_what_was_kept(cfg, p->context.poses.get(), sum, stamp_min, stamp_max, run_warnings);
   // The products, in stage order, then returns.pcd and cloud.pcd (the tasks' bodies behind one header).
   for (std::size_t s = 0; s < ns; ++s) {
     if (p->stages[s]->kind() != StageKind::kAccumulator) continue;
@@ -597,8 +603,14 @@ RunSummary run_shard_reduce(const std::string& w) {
     throw InputError(w + ": the tasks' returns.pcd records hold " + std::to_string(nr) + " returns, their partials " +
                      std::to_string(sum.input_returns) + ": rerun every task of phase 'passes'");
   const std::string report_tmp = out.staged_path("report.json");
+  sum.warnings = run_warnings;
   for (const auto& r : sum.stages)
     for (const auto& wn : r.warnings) sum.warnings.push_back(r.name + ": " + wn);
+  if (const double far = p->context.poses ? farthest_pose_offset(*p->context.poses, Eigen::Vector3d::Zero()) : 0.0;
+      far > kFloat32MillimetreReach - 1000.0)
+    sum.warnings.push_back(cfg.poses + ": poses reach " + format_value(std::round(far)) +
+                           " m from the map origin; returns.pcd, cloud.pcd and map.bt (float32) keep 1 mm only within " +
+                           format_value(kFloat32MillimetreReach) + " m of it: split the run");
   sum.outputs = out.final_paths();
   for (const auto& f : cfg.scans) sum.input_files.push_back({f, "scan", 0, ""});
   if (!cfg.poses.empty()) sum.input_files.push_back({cfg.poses, "poses", 0, ""});
