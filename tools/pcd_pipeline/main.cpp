@@ -7,6 +7,7 @@
 
 #include "bench.hpp"
 #include "commands.hpp"
+#include "shard.hpp"
 #include "pcdp/core/errors.hpp"
 #include "pcdp/io/atomic_file.hpp"
 #include "pcdp/models/nod_plan.hpp"
@@ -193,6 +194,8 @@ int main(int argc, char** argv) {
   bch->add_option("--scaling", bench.scaling, "also time `run` on these numbers of passes, e.g. 1,10,100");
   CLI::App* docs = app.add_subcommand("docs", "print the generated stage and block reference (Markdown)");
 
+  cli::ShardArgs shard_args;
+  cli::add_shard_commands(app, shard_args);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -204,6 +207,7 @@ int main(int argc, char** argv) {
   io::install_signal_cleanup();
   try {
     if (*run) return cli::cmd_run(run_args);
+    if (const int rc = cli::run_shard_commands(shard_args); rc >= 0) return rc;
     if (*validate) return cli::cmd_validate(run_args);
     if (*stages) return cli::cmd_stages();
     if (*describe) return cli::cmd_describe(describe_what);

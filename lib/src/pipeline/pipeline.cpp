@@ -107,12 +107,14 @@ std::string seconds_text(double t) {
   return b;
 }
 
+}  // namespace
+
 /// The run-level checks of what the passes kept (docs/robustness.md, "silent success"): a run
 /// that keeps nothing, or leaves more than half of its in-range returns without a pose, is an
 /// InputError (exit 3) naming the cause and the fix, unless `allow_empty_output`; then, and
 /// for shares above kWarnShare, warnings. Called before any product is written or committed.
-void check_what_was_kept(const PipelineConfig& cfg, const PoseTrack* poses, const RunSummary& sum, double stamp_min,
-                         double stamp_max, std::vector<std::string>& warnings) {
+void detail::check_what_was_kept(const PipelineConfig& cfg, const PoseTrack* poses, const RunSummary& sum,
+                                 double stamp_min, double stamp_max, std::vector<std::string>& warnings) {
   constexpr double kWarnShare = 0.05;
   const auto n = sum.input_returns;
   const auto no_return = sum.labels[static_cast<std::size_t>(Label::kNoReturn)];
@@ -168,6 +170,7 @@ void check_what_was_kept(const PipelineConfig& cfg, const PoseTrack* poses, cons
   }
 }
 
+namespace {
 /// report.json lists every input and every other product with its size and SHA-256: the
 /// products as staged (complete, committed as they are), hashed on the run's threads.
 void digest_files(const PipelineConfig& cfg, io::StagedOutputs& out, RunSummary& sum) {
@@ -264,7 +267,7 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
       });
   // Every label is final now: a run that kept nothing stops here, before any product is written.
   std::vector<std::string> run_warnings;
-  check_what_was_kept(cfg, context_.poses.get(), sum, stamp_min, stamp_max, run_warnings);
+  detail::check_what_was_kept(cfg, context_.poses.get(), sum, stamp_min, stamp_max, run_warnings);
   {
     const detail::PhaseTimer phase(sum, "finish");
     schedule.products(out, {[&] { returns.close(); }, [&] { cloud.close(); }});

@@ -54,6 +54,12 @@ LabelHistogram histogram(const Pass& p);
 /// Adds a pass's (or a writer's) share of a stage's report.
 void merge_report(StageReport& into, const StageReport& r);
 
+/// The run-level checks of what the passes kept (pipeline.cpp; docs/robustness.md): an InputError
+/// for a run that keeps nothing or leaves most returns without a pose (unless allow_empty_output),
+/// else warnings appended to `warnings`. Shared by Pipeline::run and the shard reduce.
+void check_what_was_kept(const PipelineConfig& cfg, const PoseTrack* poses, const RunSummary& sum, double stamp_min,
+                         double stamp_max, std::vector<std::string>& warnings);
+
 class Scheduler {
  public:
   /// `sum.stages` holds one report per stage; `sum.threads` the thread count.

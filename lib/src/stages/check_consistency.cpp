@@ -29,6 +29,38 @@ const Options<ConsistencyParams>& check_consistency_options() {
 
 const OptionSchema& check_consistency_schema() { return check_consistency_options().schema(); }
 
+// A pass's evidence to a stream and back (InOrderPartial::save / load): the hit voxels in the
+// order VoxelSet lists them (blocks as first touched), inserted again in that order, so the
+// blocks keep their order and a merge sees what it sees in one process.
+void save_item(std::ostream& o, const ConsistencyEvidence::PassRays& r) {
+  partial_io::put_str(o, "check_consistency.pass_rays");
+  partial_io::put<std::uint64_t>(o, r.index);
+  partial_io::put(o, r.bit);
+  partial_io::put(o, r.anchor);
+  partial_io::put_vec(o, r.rays);
+  partial_io::put_vec(o, r.lines);
+  std::vector<std::uint32_t> hit;
+  r.hit.for_each([&](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+    hit.push_back(x);
+    hit.push_back(y);
+    hit.push_back(z);
+  });
+  partial_io::put_vec(o, hit);
+}
+void load_item(std::istream& i, ConsistencyEvidence::PassRays& r) {
+  partial_io::expect(i, "check_consistency.pass_rays");
+  r.index = partial_io::get<std::uint64_t>(i);
+  partial_io::get(i, r.bit);
+  partial_io::get(i, r.anchor);
+  partial_io::get_vec(i, r.rays);
+  partial_io::get_vec(i, r.lines);
+  std::vector<std::uint32_t> hit;
+  partial_io::get_vec(i, hit);
+  if (hit.size() % 3) throw InputError("the partial is corrupt (hit voxels)");
+  r.hit = VoxelSet(0x27d4eb2fu);
+  for (std::size_t k = 0; k < hit.size(); k += 3) r.hit.insert(hit[k], hit[k + 1], hit[k + 2]);
+}
+
 namespace {
 class CheckConsistencyStage final : public Stage {
  public:

@@ -195,6 +195,18 @@ class FuseElevationStage final : public Stage {
     std::vector<ElevationSample> samples;
     CellBounds bounds;
     std::string source;
+    friend void save_item(std::ostream& o, const Samples& w) {
+      partial_io::put_str(o, "fuse_elevation.samples");
+      partial_io::put_vec(o, w.samples);
+      partial_io::put(o, w.bounds);
+      partial_io::put_str(o, w.source);
+    }
+    friend void load_item(std::istream& i, Samples& w) {
+      partial_io::expect(i, "fuse_elevation.samples");
+      partial_io::get_vec(i, w.samples);
+      partial_io::get(i, w.bounds);
+      w.source = partial_io::get_str(i);
+    }
   };
   using Fused = InOrderPartial<State, Samples>;
   std::unique_ptr<State> fresh() const { return std::make_unique<State>(State{make_elevation_grid(params_), {}}); }

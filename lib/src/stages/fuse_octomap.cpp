@@ -39,6 +39,37 @@ const Options<FuseOctoMapParams>& fuse_octomap_options() {
 
 const OptionSchema& fuse_octomap_schema() { return fuse_octomap_options().schema(); }
 
+// A pass's cells to a stream and back (InOrderPartial::save / load).
+namespace {
+struct Key3 {
+  std::uint16_t k[3];
+};
+void put_keys(std::ostream& o, const std::vector<octomap::OcTreeKey>& keys) {
+  std::vector<Key3> v(keys.size());
+  for (std::size_t i = 0; i < keys.size(); ++i) v[i] = {{keys[i].k[0], keys[i].k[1], keys[i].k[2]}};
+  partial_io::put_vec(o, v);
+}
+void get_keys(std::istream& in, std::vector<octomap::OcTreeKey>& keys) {
+  std::vector<Key3> v;
+  partial_io::get_vec(in, v);
+  keys.resize(v.size());
+  for (std::size_t i = 0; i < v.size(); ++i) keys[i] = octomap::OcTreeKey(v[i].k[0], v[i].k[1], v[i].k[2]);
+}
+}  // namespace
+
+void save_item(std::ostream& out, const PassRays& r) {
+  partial_io::put_str(out, "fuse_octomap.pass_rays");
+  partial_io::put(out, r.rays);
+  put_keys(out, r.free_list);
+  put_keys(out, r.occupied_list);
+}
+void load_item(std::istream& in, PassRays& r) {
+  partial_io::expect(in, "fuse_octomap.pass_rays");
+  partial_io::get(in, r.rays);
+  get_keys(in, r.free_list);
+  get_keys(in, r.occupied_list);
+}
+
 namespace {
 class FuseOctoMapStage final : public Stage {
  public:

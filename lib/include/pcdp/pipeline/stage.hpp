@@ -6,6 +6,8 @@
 #pragma once
 
 #include <functional>
+#include <istream>
+#include <ostream>
 #include <map>
 #include <stdexcept>
 #include <memory>
@@ -15,6 +17,7 @@
 #include "pcdp/pipeline/config.hpp"
 #include "pcdp/core/labels.hpp"
 #include "pcdp/pipeline/options.hpp"
+#include "pcdp/pipeline/partial_io.hpp"
 #include "pcdp/core/transforms.hpp"
 #include "pcdp/pipeline/work_share.hpp"
 
@@ -37,8 +40,13 @@ struct StageReport {
 
 /// What an accumulator collects from passes (Stage::collect) and folds (Stage::merge): the stage's
 /// own type, downcast by the stage alone.
+/// save()/load() carry a partial between processes (shards, docs/scaling.md): load() replaces
+/// the contents of a partial of the same type (an empty one comes from collect() of a pass with no
+/// returns) with what save() wrote; a short or foreign stream is an InputError.
 struct Partial {
   virtual ~Partial() = default;
+  virtual void save(std::ostream& /*out*/) const { throw std::logic_error("this partial cannot be saved"); }
+  virtual void load(std::istream& /*in*/) { throw std::logic_error("this partial cannot be loaded"); }
 };
 
 /// One independent piece of the products of an accumulator: `write` writes `files` (product names
@@ -112,27 +120,27 @@ class Stage {
 /// order (the pipeline does). `fold(State&, Item&&)` folds one pass's item.
 template <class State, class Item>
 struct InOrderPartial : Partial {
-  std::unique_ptr<State> state;  ///< set when the partial holds the first pass
+  std::unique_ptr<State> state;  ///< the folded state, once the partial holding the first pass merged
   std::vector<Item> pending;     ///< items of passes not folded yet, in pass order
+  bool first = false;            ///< holds the run's first pass
+  std::function<std::unique_ptr<State>()> make;  ///< a fresh state (set by of())
 
-  /// The partial of one pass: folded into a new state, make_state(), when `first` (the run's
-  /// first pass).
+  /// The partial of one pass (`first`: the run's first pass). Folding starts at the first merge
+  /// into the partial holding the first pass, so a partial of one pass can still be saved.
   template <class MakeState, class Fold>
-  static std::unique_ptr<InOrderPartial> of(Item&& item, bool first, MakeState&& make_state, Fold&& fold) {
+  static std::unique_ptr<InOrderPartial> of(Item&& item, bool first, MakeState&& make_state, Fold&& /*fold*/) {
     auto p = std::make_unique<InOrderPartial>();
-    if (first) {
-      p->state = make_state();
-      fold(*p->state, std::move(item));
-    } else {
-      p->pending.push_back(std::move(item));
-    }
+    p->first = first;
+    p->make = std::forward<MakeState>(make_state);
+    p->pending.push_back(std::move(item));
     return p;
   }
   /// Stage::merge for this partial.
   template <class Fold>
   void absorb(InOrderPartial&& later, Fold&& fold) {
-    if (later.state) throw std::logic_error("InOrderPartial: a later partial holds the first pass");
-    if (state) {
+    if (later.first || later.state) throw std::logic_error("InOrderPartial: a later partial holds the first pass");
+    if (first) {
+      if (!state) state = make();
       for (Item& it : pending) fold(*state, std::move(it));
       pending.clear();
       for (Item& it : later.pending) fold(*state, std::move(it));
@@ -150,6 +158,25 @@ struct InOrderPartial : Partial {
     if (me)
       for (Item& it : me->pending) fold(*s, std::move(it));
     return s;
+  }
+  /// The items, unfolded (a partial whose state is folded stays in its process): each item by
+  /// save_item(std::ostream&, const Item&) / load_item(std::istream&, Item&), found by ADL.
+  void save(std::ostream& out) const override {
+    if (state) throw std::logic_error("InOrderPartial: a folded partial cannot be saved");
+    partial_io::put_str(out, "pcdp.in_order_partial.1");
+    partial_io::put<std::uint8_t>(out, first ? 1 : 0);
+    partial_io::put<std::uint64_t>(out, pending.size());
+    for (const Item& it : pending) save_item(out, it);
+  }
+  void load(std::istream& in) override {
+    partial_io::expect(in, "pcdp.in_order_partial.1");
+    state.reset();
+    first = partial_io::get<std::uint8_t>(in) != 0;
+    const auto n = partial_io::get<std::uint64_t>(in);
+    if (n > (1u << 24)) throw InputError("the partial is corrupt (" + std::to_string(n) + " passes)");
+    pending.clear();
+    pending.resize(n);
+    for (Item& it : pending) load_item(in, it);
   }
 };
 
