@@ -170,10 +170,22 @@ void detail::check_what_was_kept(const PipelineConfig& cfg, const PoseTrack* pos
   }
 }
 
-namespace {
+void detail::collect_warnings(const PipelineConfig& cfg, const PoseTrack* poses,
+                              const std::vector<std::string>& run_warnings, RunSummary& sum) {
+  sum.warnings = run_warnings;
+  for (const auto& r : sum.stages)
+    for (const auto& w : r.warnings) sum.warnings.push_back(r.name + ": " + w);
+  // The poses (relative to the map origin) so far from it that the float32 products lose 1 mm.
+  if (const double far = poses ? farthest_pose_offset(*poses, Eigen::Vector3d::Zero()) : 0.0;
+      far > kFloat32MillimetreReach - 1000.0)
+    sum.warnings.push_back(cfg.poses + ": poses reach " + format_value(std::round(far)) +
+                           " m from the map origin; returns.pcd, cloud.pcd and map.bt (float32) keep 1 mm only within " +
+                           format_value(kFloat32MillimetreReach) + " m of it: split the run");
+}
+
 /// report.json lists every input and every other product with its size and SHA-256: the
 /// products as staged (complete, committed as they are), hashed on the run's threads.
-void digest_files(const PipelineConfig& cfg, io::StagedOutputs& out, RunSummary& sum) {
+void detail::digest_files(const PipelineConfig& cfg, io::StagedOutputs& out, RunSummary& sum) {
   const detail::PhaseTimer digest(sum, "digest");
   for (const auto& f : cfg.scans) sum.input_files.push_back({f, "scan", 0, ""});
   if (!cfg.poses.empty()) sum.input_files.push_back({cfg.poses, "poses", 0, ""});
@@ -205,7 +217,6 @@ void digest_files(const PipelineConfig& cfg, io::StagedOutputs& out, RunSummary&
                                         [](const RunSummary::FileRecord& r) { return r.sha256.empty(); }),
                          sum.output_files.end());
 }
-}  // namespace
 
 RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   const auto t_run = std::chrono::steady_clock::now();
@@ -275,17 +286,9 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   if (returns.points() != sum.input_returns)
     throw std::logic_error("returns.pcd holds " + std::to_string(returns.points()) + " returns, input had " +
                            std::to_string(sum.input_returns));
-  sum.warnings = run_warnings;
-  for (const auto& r : sum.stages)
-    for (const auto& w : r.warnings) sum.warnings.push_back(r.name + ": " + w);
-  // The poses (relative to the map origin) so far from it that the float32 products lose 1 mm.
-  if (const double far = context_.poses ? farthest_pose_offset(*context_.poses, Eigen::Vector3d::Zero()) : 0.0;
-      far > kFloat32MillimetreReach - 1000.0)
-    sum.warnings.push_back(cfg.poses + ": poses reach " + format_value(std::round(far)) +
-                           " m from the map origin; returns.pcd, cloud.pcd and map.bt (float32) keep 1 mm only within " +
-                           format_value(kFloat32MillimetreReach) + " m of it: split the run");
+  detail::collect_warnings(cfg, context_.poses.get(), run_warnings, sum);
   sum.outputs = out.final_paths();
-  digest_files(cfg, out, sum);
+  detail::digest_files(cfg, out, sum);
   sum.seconds = seconds_since(t_run);
   {
     const std::string js = report_json(cfg, sum);

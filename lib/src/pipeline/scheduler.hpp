@@ -59,6 +59,13 @@ void merge_report(StageReport& into, const StageReport& r);
 /// else warnings appended to `warnings`. Shared by Pipeline::run and the shard reduce.
 void check_what_was_kept(const PipelineConfig& cfg, const PoseTrack* poses, const RunSummary& sum, double stamp_min,
                          double stamp_max, std::vector<std::string>& warnings);
+/// The run's warnings in report.json's order: `run_warnings` (check_what_was_kept's), each stage's,
+/// then poses so far from the map origin that the float32 products lose 1 mm.
+void collect_warnings(const PipelineConfig& cfg, const PoseTrack* poses, const std::vector<std::string>& run_warnings,
+                      RunSummary& sum);
+/// report.json's inputs and products (every staged file but report.json), each with its size and
+/// SHA-256, hashed on sum.threads threads.
+void digest_files(const PipelineConfig& cfg, io::StagedOutputs& out, RunSummary& sum);
 
 class Scheduler {
  public:

@@ -184,40 +184,9 @@ RunSummary run_shard_reduce(const std::string& w) {
     throw InputError(w + ": the tasks' returns.pcd records hold " + std::to_string(nr) + " returns, their partials " +
                      std::to_string(sum.input_returns) + ": rerun every task of phase 'passes'");
   const std::string report_tmp = out.staged_path("report.json");
-  sum.warnings = run_warnings;
-  for (const auto& r : sum.stages)
-    for (const auto& wn : r.warnings) sum.warnings.push_back(r.name + ": " + wn);
-  if (const double far = p->context.poses ? farthest_pose_offset(*p->context.poses, Eigen::Vector3d::Zero()) : 0.0;
-      far > kFloat32MillimetreReach - 1000.0)
-    sum.warnings.push_back(cfg.poses + ": poses reach " + format_value(std::round(far)) +
-                           " m from the map origin; returns.pcd, cloud.pcd and map.bt (float32) keep 1 mm only within " +
-                           format_value(kFloat32MillimetreReach) + " m of it: split the run");
+  detail::collect_warnings(cfg, p->context.poses.get(), run_warnings, sum);
   sum.outputs = out.final_paths();
-  for (const auto& f : cfg.scans) sum.input_files.push_back({f, "scan", 0, ""});
-  if (!cfg.poses.empty()) sum.input_files.push_back({cfg.poses, "poses", 0, ""});
-  std::vector<std::string> names = out.names();
-  std::sort(names.begin(), names.end());
-  for (const auto& n : names)
-    if (n != "report.json") sum.output_files.push_back({n, "", 0, ""});
-  for (auto& r : sum.input_files) {
-    io::FileDigest d;
-    if (const int err = io::digest_file(r.file, d))
-      throw InputError(r.file + ": cannot read it to hash it for report.json (" + std::strerror(err) + ")");
-    r.bytes = d.bytes;
-    r.sha256 = d.sha256;
-  }
-  for (auto& r : sum.output_files) {
-    io::FileDigest d;
-    if (io::digest_file((fs::path(out.staging_dir()) / r.file).string(), d)) {
-      r.sha256.clear();
-      continue;
-    }
-    r.bytes = d.bytes;
-    r.sha256 = d.sha256;
-  }
-  sum.output_files.erase(std::remove_if(sum.output_files.begin(), sum.output_files.end(),
-                                        [](const RunSummary::FileRecord& r) { return r.sha256.empty(); }),
-                         sum.output_files.end());
+  detail::digest_files(cfg, out, sum);
   sum.seconds = detail::seconds_since(t_run);
   std::string js = report_json(cfg, sum);
   // The shard section: the plan the products came from.
