@@ -34,6 +34,10 @@
 // top minus surface (a top not seen, e.g. only the ground under a table).
 //
 // Usage: pcdp_mixed_sweep [--set tuning|heldout] [--index N]... [--json FILE] [--misses K] [--rank recall|f1|valid]
+//                         [--require-recall R] [--require-valid-rejected PCT] [--require-occlusion-recall R]
+//                         [--require-phantom-cells N]
+// The --require options check the pooled numbers (exit 1 naming each one missed): CI runs both sets
+// with a margin below today's numbers (bench/CMakeLists.txt), so a regression fails the build.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -468,6 +472,8 @@ int main(int argc, char** argv) {
   std::vector<int> indices;
   int worst = 3;
   std::string rank = "recall";
+  double need_recall = -1, need_valid = -1, need_occlusion = -1;
+  long need_phantom = -1;
   for (int a = 1; a < argc; ++a) {
     const std::string k = argv[a];
     const bool has = a + 1 < argc;
@@ -476,9 +482,14 @@ int main(int argc, char** argv) {
     else if (k == "--json" && has) json = argv[++a];
     else if (k == "--misses" && has) worst = std::atoi(argv[++a]);
     else if (k == "--rank" && has) rank = argv[++a];
+    else if (k == "--require-recall" && has) need_recall = std::atof(argv[++a]);
+    else if (k == "--require-valid-rejected" && has) need_valid = std::atof(argv[++a]);
+    else if (k == "--require-occlusion-recall" && has) need_occlusion = std::atof(argv[++a]);
+    else if (k == "--require-phantom-cells" && has) need_phantom = std::atol(argv[++a]);
     else {
       std::fprintf(stderr,
                    "usage: %s [--set tuning|heldout] [--index N]... [--json FILE] [--misses K] [--rank recall|f1|valid]\n"
+                   "          [--require-recall R] [--require-valid-rejected PCT] [--require-occlusion-recall R] [--require-phantom-cells N]\n"
                    "  --misses K: analyse the misses of the K worst settings by --rank (default 3, recall)\n"
                    "  tuning: settings 0-23; heldout: 1000-1015 (never used for tuning)\n",
                    argv[0]);
@@ -535,5 +546,15 @@ int main(int argc, char** argv) {
     std::fprintf(f, "}\n");
     std::fclose(f);
   }
-  return 0;
+  int failed = 0;
+  const auto require = [&](bool ok, const char* what, double got, double need) {
+    if (ok) return;
+    std::fprintf(stderr, "pooled %s is %.4f, required %.4f\n", what, got, need);
+    failed = 1;
+  };
+  if (need_recall >= 0) require(all.recall() >= need_recall, "mixed-pixel recall (at least)", all.recall(), need_recall);
+  if (need_valid >= 0) require(100 * all.valid_rate() <= need_valid, "valid returns rejected, % (at most)", 100 * all.valid_rate(), need_valid);
+  if (need_occlusion >= 0) require(all.occ_recall() >= need_occlusion, "occlusion recall (at least)", all.occ_recall(), need_occlusion);
+  if (need_phantom >= 0) require(static_cast<long>(all.phantom_cells) <= need_phantom, "phantom cells (at most)", double(all.phantom_cells), double(need_phantom));
+  return failed;
 }

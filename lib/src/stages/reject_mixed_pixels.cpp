@@ -6,6 +6,7 @@
 
 #include "pcdp/core/errors.hpp"
 #include "pcdp/core/pass.hpp"
+#include "pcdp/models/mixing_model.hpp"
 
 namespace pcdp {
 
@@ -228,10 +229,9 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
     const double a = v.amplitude ? static_cast<double>(v.amplitude[i]) : NAN;
     const double p1 = side_amp(v, nr, p), p2 = side_amp(v, fr, p);
     const bool saturated = a >= p.amplitude_saturation || p1 >= p.amplitude_saturation || p2 >= p.amplitude_saturation;
-    if (std::isfinite(a) && std::isfinite(p1) && std::isfinite(p2) && p1 + p2 > 0 && !saturated) {  // 4. amplitude mixing
-      const double den = p1 * (ri - d1) + p2 * (d2 - ri);
-      const double f = den > 0 ? p2 * (d2 - ri) / den : 0.5;
-      const double pred = f * p1 + (1 - f) * p2;
+    // 4. amplitude mixing (models/mixing_model.hpp); unknown where a side's amplitude is 0.
+    const double pred = std::isfinite(a) && !saturated && d2 > d1 ? mixture_amplitude_at(ri, d1, p1, d2, p2) : NAN;
+    if (std::isfinite(pred)) {
       if (a > pred * (1 + p.amplitude_ratio) + p.amplitude_slack) continue;
       if (coaxial && a < pred * (1 - p.amplitude_ratio) - p.amplitude_slack) continue;
     }
@@ -356,9 +356,7 @@ bool dimmer_than_its_object(const ReturnsView& v, const std::vector<std::size_t>
   if (!(ri > d1 + tol && ri < d2 - tol)) return false;
   if (!(p1 > p2 * (1 + p.amplitude_ratio) + p.amplitude_slack)) return false;
   if (!(ai > p2 + p.amplitude_slack && ai < p.spike_dim_ratio * p1)) return false;
-  const double den = p1 * (ri - d1) + p2 * (d2 - ri);
-  const double f = p2 * (d2 - ri) / den;  // den > 0: d1 < ri < d2
-  return ai <= (f * p1 + (1 - f) * p2) * (1 + p.amplitude_ratio) + p.amplitude_slack;
+  return ai <= mixture_amplitude_at(ri, d1, p1, d2, p2) * (1 + p.amplitude_ratio) + p.amplitude_slack;  // d1 < ri < d2
 }
 
 /// Spikes off every surface in a sequence (the other direction): the spike has at least one

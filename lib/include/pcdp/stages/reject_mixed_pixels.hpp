@@ -15,7 +15,7 @@
 //  3. geometry: at the return, the angle between its beam (from its own sensor origin) and the
 //     segment to the neighbour on one side or the other is below max_angle (a veil runs along the
 //     beam; a mixture close to one surface makes a wide angle with that side only);
-//  4. amplitude mixing: with fraction f of the footprint on the near surface, the power-weighted
+//  4. amplitude mixing (models/mixing_model.hpp): with fraction f of the footprint on the near surface, the power-weighted
 //     range and amplitude of a mixture are
 //         r = (f P1 d1 + (1 - f) P2 d2) / (f P1 + (1 - f) P2),   A = f P1 + (1 - f) P2,
 //     so f follows from r, and A must agree with the mixture: not brighter than

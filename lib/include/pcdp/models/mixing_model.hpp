@@ -1,0 +1,29 @@
+// The mixed-pixel model: what a footprint split between two surfaces returns.
+//
+// Mixing (Ye & Borenstein 2002, section 4.5; the receiver integrates the echo): a footprint with a
+// share f of its power-weighted area on a near surface at range d1 and the rest on a far surface at
+// d2 returns the power-weighted range and the summed amplitude
+//     r = (f P1 d1 + (1 - f) P2 d2) / (f P1 + (1 - f) P2),      A = f P1 + (1 - f) P2,
+// where P1, P2 are the amplitudes each surface would return if it filled the footprint. With the
+// power share w = f P1 / A of the near surface, r = w d1 + (1 - w) d2, so w follows from the range
+// alone, and then the amplitude is fixed: A = 1 / (w / P1 + (1 - w) / P2), a weighted harmonic mean
+// of P1 and P2 (mixture_amplitude_at). A non-coaxial receiver (Liu et al. 2005) can only lose
+// part of the far surface's light behind the edge, so a real mixture is never brighter than that.
+
+#pragma once
+
+namespace pcdp {
+
+/// Range of a mixture with share f (0..1) of the footprint on the near surface (d1, P1).
+double mixture_range(double f, double d1, double p1, double d2, double p2);
+/// Amplitude of that mixture: f P1 + (1 - f) P2.
+double mixture_amplitude(double f, double p1, double p2);
+/// The footprint share f on the near surface that gives range r (d1 <= r <= d2); NaN outside, or
+/// when d1 == d2 or an amplitude is not positive.
+double mixture_share(double r, double d1, double p1, double d2, double p2);
+/// The amplitude a mixture of the two surfaces has at range r: 1 / (w / P1 + (1 - w) / P2) with
+/// w = (d2 - r) / (d2 - d1), r clamped to [d1, d2] (outside it the nearest mixture is the pure
+/// surface). NaN when d2 <= d1 or an amplitude is not positive.
+double mixture_amplitude_at(double r, double d1, double p1, double d2, double p2);
+
+}  // namespace pcdp

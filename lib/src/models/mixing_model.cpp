@@ -1,0 +1,29 @@
+#include "pcdp/models/mixing_model.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace pcdp {
+
+double mixture_range(double f, double d1, double p1, double d2, double p2) {
+  const double a = f * p1 + (1 - f) * p2;
+  return a > 0 ? (f * p1 * d1 + (1 - f) * p2 * d2) / a : NAN;
+}
+
+double mixture_amplitude(double f, double p1, double p2) { return f * p1 + (1 - f) * p2; }
+
+double mixture_share(double r, double d1, double p1, double d2, double p2) {
+  if (!(d2 > d1) || !(r >= d1 && r <= d2) || !(p1 > 0) || !(p2 > 0)) return NAN;
+  const double w = (d2 - r) / (d2 - d1);  // power share of the near surface
+  // w = f p1 / (f p1 + (1 - f) p2)  =>  f = w p2 / (w p2 + (1 - w) p1)
+  return w * p2 / (w * p2 + (1 - w) * p1);
+}
+
+double mixture_amplitude_at(double r, double d1, double p1, double d2, double p2) {
+  if (!(d2 > d1) || !(p1 > 0) || !(p2 > 0) || std::isnan(r)) return NAN;
+  const double rc = std::clamp(r, d1, d2);
+  // 1 / (w / p1 + (1 - w) / p2) with w = (d2 - r) / (d2 - d1), without dividing twice.
+  return p1 * p2 * (d2 - d1) / (p2 * (d2 - rc) + p1 * (rc - d1));
+}
+
+}  // namespace pcdp

@@ -1,0 +1,106 @@
+// Property tests of the mixed-pixel model (models/mixing_model.hpp) and its agreement with the
+// ray-traced simulator, which knows nothing of the formulas: it sums sub-ray powers and ranges.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <random>
+
+#include "pcdp/models/mixing_model.hpp"
+#include "pcdp/sim/nodding_sim.hpp"
+
+using namespace pcdp;
+
+namespace {
+struct Surfaces {
+  double d1, p1, d2, p2;
+};
+/// Two surfaces as scanners meet them: 0.3-30 m, the far one 1 cm-10 m behind, amplitudes 1-1000.
+Surfaces random_surfaces(std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const double d1 = 0.3 + 30.0 * u(rng);
+  return {d1, std::exp(std::log(1000.0) * u(rng)), d1 + 0.01 + 10.0 * u(rng), std::exp(std::log(1000.0) * u(rng))};
+}
+}  // namespace
+
+TEST(MixingModel, RangeLiesBetweenTheSurfacesAndFallsAsTheNearShareGrows) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int k = 0; k < 5000; ++k) {
+    const Surfaces s = random_surfaces(rng);
+    EXPECT_NEAR(mixture_range(1.0, s.d1, s.p1, s.d2, s.p2), s.d1, 1e-9 * s.d2);
+    EXPECT_NEAR(mixture_range(0.0, s.d1, s.p1, s.d2, s.p2), s.d2, 1e-9 * s.d2);
+    const double f = u(rng), g = f + (1 - f) * u(rng) * 0.999 + 1e-6;
+    const double rf = mixture_range(f, s.d1, s.p1, s.d2, s.p2), rg = mixture_range(g, s.d1, s.p1, s.d2, s.p2);
+    EXPECT_GE(rf, s.d1 - 1e-12);
+    EXPECT_LE(rf, s.d2 + 1e-12);
+    EXPECT_LT(rg, rf + 1e-12) << k;  // more of the footprint on the near surface: nearer
+    const double a = mixture_amplitude(f, s.p1, s.p2);
+    EXPECT_GE(a, std::min(s.p1, s.p2) - 1e-9);
+    EXPECT_LE(a, std::max(s.p1, s.p2) + 1e-9);
+  }
+}
+
+TEST(MixingModel, TheRangeFixesTheShareAndTheAmplitude) {
+  // r alone gives the footprint share; the amplitude then follows (the stage tests a return's
+  // amplitude against it). Round trip over random surfaces and shares.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int k = 0; k < 5000; ++k) {
+    const Surfaces s = random_surfaces(rng);
+    const double f = u(rng);
+    const double r = mixture_range(f, s.d1, s.p1, s.d2, s.p2);
+    EXPECT_NEAR(mixture_share(r, s.d1, s.p1, s.d2, s.p2), f, 1e-6) << k;
+    const double a = mixture_amplitude(f, s.p1, s.p2);
+    EXPECT_NEAR(mixture_amplitude_at(r, s.d1, s.p1, s.d2, s.p2), a, 1e-6 * a) << k;
+  }
+}
+
+TEST(MixingModel, AmplitudeAtRangeIsClampedAndRefusesNonsense) {
+  const Surfaces s{5.0, 100.0, 8.0, 20.0};
+  EXPECT_DOUBLE_EQ(mixture_amplitude_at(4.0, s.d1, s.p1, s.d2, s.p2), 100.0);  // in front: the near surface
+  EXPECT_DOUBLE_EQ(mixture_amplitude_at(9.0, s.d1, s.p1, s.d2, s.p2), 20.0);   // behind: the far one
+  // Halfway in range is far from halfway in amplitude: the bright surface pulls the range to it,
+  // so a mixture halfway between is mostly (by area) on the dim far surface.
+  EXPECT_NEAR(mixture_amplitude_at(6.5, s.d1, s.p1, s.d2, s.p2), 1.0 / (0.5 / 100 + 0.5 / 20), 1e-9);
+  EXPECT_TRUE(std::isnan(mixture_amplitude_at(6.0, 8.0, 100, 5.0, 20)));  // far before near
+  EXPECT_TRUE(std::isnan(mixture_amplitude_at(6.0, 5.0, 0.0, 8.0, 20)));
+  EXPECT_TRUE(std::isnan(mixture_amplitude_at(NAN, 5.0, 100, 8.0, 20)));
+  EXPECT_TRUE(std::isnan(mixture_share(9.0, 5.0, 100, 8.0, 20)));  // outside: no mixture of these two
+  EXPECT_TRUE(std::isnan(mixture_share(6.0, 5.0, 100, 5.0, 20)));
+}
+
+TEST(MixingModel, AgreesWithTheRayTracedSimulator) {
+  // A coaxial beam (nothing hidden from the receiver) straddling the vertical edge of a near box
+  // in front of a far wall: the simulator's range and amplitude must be a mixture of the model's,
+  // with P1 and P2 read from beams fully on each surface.
+  sim::SimConfig c;
+  c.scene.ground_z = -100;
+  c.scanner.beam_divergence = 0.01;
+  c.scanner.subrays = 4000;
+  c.scanner.transceiver_separation = 0.0;
+  c.scanner.amplitude_range_exponent = 2.0;
+  c.scanner.amplitude_scale = 4000.0;
+  c.scene.boxes.push_back({{4.0, -3.0, -3.0}, {4.2, 0.0, 3.0}, 0.8});   // near, bright, edge at y = 0
+  c.scene.boxes.push_back({{9.0, -6.0, -6.0}, {9.4, 6.0, 6.0}, 0.1});   // far, dark
+  const auto beam = [&](double bearing) {
+    const Eigen::Vector3d d(std::cos(bearing), std::sin(bearing), 0.0), uu(-std::sin(bearing), std::cos(bearing), 0.0),
+        v(0, 0, 1);
+    return sim::cast_beam(c, Eigen::Vector3d::Zero(), d, uu, v, bearing);
+  };
+  const auto near = beam(-0.05), far = beam(0.05);
+  ASSERT_NEAR(near.range, 4.0 / std::cos(0.05), 1e-3);
+  ASSERT_NEAR(far.range, 9.0 / std::cos(0.05), 2e-3);
+  int mixtures = 0;
+  for (double b = -0.006; b <= 0.006; b += 0.0005) {
+    const auto m = beam(b);
+    const double d1 = 4.0 / std::cos(b), d2 = 9.0 / std::cos(b);
+    if (!(m.range > d1 + 0.05 && m.range < d2 - 0.05)) continue;
+    ++mixtures;
+    // P1, P2 at this bearing: the cos and range terms of the full beams, scaled to this bearing.
+    const double p1 = near.amplitude * std::pow(std::cos(b) / std::cos(0.05), 3.0);
+    const double p2 = far.amplitude * std::pow(std::cos(b) / std::cos(0.05), 3.0);
+    EXPECT_NEAR(m.amplitude, mixture_amplitude_at(m.range, d1, p1, d2, p2), 0.02 * m.amplitude) << b;
+  }
+  EXPECT_GT(mixtures, 5);
+}
