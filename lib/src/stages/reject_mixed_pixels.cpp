@@ -39,6 +39,7 @@ const Options<MixedPixelParams>& reject_mixed_pixels_options() {
 const OptionSchema& reject_mixed_pixels_schema() { return reject_mixed_pixels_options().schema(); }
 
 namespace {
+constexpr int kMaxExtraRounds = 2;
 /// The smallest range step that makes an edge at range r (jump_min, or jump_ratio of r if larger).
 double jump_at(const MixedPixelParams& p, double r) { return std::max(p.jump_min, p.jump_ratio * r); }
 /// How far from a surface a return at range r may lie and still be on it.
@@ -400,7 +401,9 @@ bool is_mixed(char edge, char other_direction) {
 }
 }  // namespace
 
-std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor) {
+namespace {
+/// One round of the tests over the returns still kept; labels what it finds.
+std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor) {
   const std::size_t n = pass.size();
   if (pass.range_cal.size() != n) throw std::logic_error("reject_mixed_pixels needs a registered pass");
   std::vector<char> usable(n), mixed(n, 0);
@@ -458,6 +461,58 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
       pass.label[i] = Label::kMixedPixel;
       ++count;
     }
+  return count;
+}
+
+/// How many more rounds a footprint wider than the beam step needs: with divergence / step = k
+/// the footprint spans k + 1 beams, so up to k + 1 mixtures of one edge lie side by side and the
+/// inner ones have another mixture, not a surface, as their nearest neighbour. Each round peels
+/// the outer mixtures of a run (only returns next to one found in the round before count).
+int extra_rounds(const Pass& pass, const SensorParams& sensor) {
+  if (pass.line_count() == 0 || pass.line_begin[1] - pass.line_begin[0] < 2) return 0;
+  const double step = std::fabs(static_cast<double>(pass.bearing[1]) - static_cast<double>(pass.bearing[0]));
+  if (!(step > 0)) return 0;
+  return std::min(kMaxExtraRounds, static_cast<int>(sensor.beam_divergence / step));
+}
+}  // namespace
+
+std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor) {
+  if (pass.range_cal.size() != pass.size()) throw std::logic_error("reject_mixed_pixels needs a registered pass");
+  std::vector<char> before(pass.size()), last(pass.size());
+  for (std::size_t i = 0; i < pass.size(); ++i) before[i] = pass.label[i] == Label::kMixedPixel;
+  std::size_t count = mark_round(pass, p, sensor);
+  const int rounds = extra_rounds(pass, sensor);
+  // Where each return sits in its line, and the width of the lines if they are all alike
+  // (organized: the same beam on the next line is `width` returns on).
+  std::vector<std::size_t> column;
+  std::size_t width = 0;
+  if (rounds > 0) {
+    column.resize(pass.size());
+    width = pass.line_begin[1] - pass.line_begin[0];
+    for (std::size_t k = 0; k < pass.line_count(); ++k) {
+      if (pass.line_begin[k + 1] - pass.line_begin[k] != width) width = 0;
+      for (std::size_t i = pass.line_begin[k]; i < pass.line_begin[k + 1]; ++i) column[i] = i - pass.line_begin[k];
+    }
+  }
+  for (int round = 0; round < rounds && count > 0; ++round) {
+    for (std::size_t i = 0; i < pass.size(); ++i) {
+      last[i] = pass.label[i] == Label::kMixedPixel && !before[i];  // found in the round before
+      before[i] = pass.label[i] == Label::kMixedPixel;
+    }
+    mark_round(pass, p, sensor);
+    std::size_t added = 0;
+    for (std::size_t i = 0; i < pass.size(); ++i) {
+      if (pass.label[i] != Label::kMixedPixel || before[i]) continue;
+      const std::size_t b = column[i];
+      const bool in_line = (b > 0 && last[i - 1]) || (i + 1 < pass.size() && column[i + 1] == b + 1 && last[i + 1]);
+      const bool across = width > 0 && ((i >= width && last[i - width]) || (i + width < pass.size() && last[i + width]));
+      const bool next_to_last = in_line || across;
+      if (next_to_last) ++added;
+      else pass.label[i] = Label::kKept;
+    }
+    count += added;
+    if (added == 0) break;
+  }
   return count;
 }
 
@@ -529,7 +584,7 @@ class RejectMixedPixelsStage final : public Stage {
   // to read a nod reversal at the last of them.
   int reach() const override {
     if (!params_.across_lines) return 0;
-    return std::max(params_.window, params_.spikes ? static_cast<int>(kObjectReach) : 0) + 1;
+    return std::max(params_.window, params_.spikes ? static_cast<int>(kObjectReach) : 0) + 1 + kMaxExtraRounds;
   }
   void label(Pass& pass, StageReport&) const override { reject_mixed_pixels(pass, params_, sensor_); }
 
