@@ -1,5 +1,6 @@
 #include "pcdp/models/mixing_model.hpp"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 
@@ -24,6 +25,19 @@ double mixture_amplitude_at(double r, double d1, double p1, double d2, double p2
   const double rc = std::clamp(r, d1, d2);
   // 1 / (w / p1 + (1 - w) / p2) with w = (d2 - r) / (d2 - d1), without dividing twice.
   return p1 * p2 * (d2 - d1) / (p2 * (d2 - rc) + p1 * (rc - d1));
+}
+
+double range_on_line(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, const Eigen::Vector3d& a,
+                     const Eigen::Vector3d& b) {
+  Eigen::Vector3d e = b - a;
+  const double len = e.norm();
+  if (!(len > 1e-9)) return NAN;
+  e /= len;
+  const double c = dir.dot(e);
+  const double den = 1.0 - c * c;  // sin^2 of the angle between ray and line
+  if (den < 1e-4) return NAN;
+  const Eigen::Vector3d w0 = origin - a;
+  return (c * e.dot(w0) - dir.dot(w0)) / den;
 }
 
 }  // namespace pcdp

@@ -89,6 +89,18 @@ Nb neighbours(const ReturnsView& v, const std::vector<std::size_t>& seq, std::si
   return nb;
 }
 
+/// Whether return i lies within tol of the plane-model line through returns a and b: on the plane
+/// they sample (models/mixing_model.hpp). Exact on planes at any incidence, where a linear or
+/// quadratic trend in range is not (ground and step tops at grazing incidence).
+bool on_plane_of(const ReturnsView& v, std::size_t i, std::size_t a, std::size_t b, double tol) {
+  const Eigen::Vector3d o(v.ox[i], v.oy[i], v.oz[i]), p(v.x[i], v.y[i], v.z[i]);
+  const Eigen::Vector3d d = p - o;
+  const double r = d.norm();
+  if (!(r > 0)) return false;
+  const double pred = range_on_line(o, d / r, {v.x[a], v.y[a], v.z[a]}, {v.x[b], v.y[b], v.z[b]});
+  return std::fabs(r - pred) <= tol;  // false for NaN: no prediction
+}
+
 double angle_to(const ReturnsView& v, std::size_t i, std::size_t j) {
   const Eigen::Vector3d p(v.x[i], v.y[i], v.z[i]);
   const Eigen::Vector3d b = (p - Eigen::Vector3d(v.ox[i], v.oy[i], v.oz[i])).normalized();
@@ -131,6 +143,8 @@ bool breaks_from_side(const ReturnsView& v, std::size_t i, const Nb& own, const 
     }
   }
   if (std::fabs(ri - trend) <= std::max(tol, allow)) return false;
+  if (on_plane_of(v, i, own.idx[0], own.idx[1], tol)) return false;
+  if (gap.count >= 2 && gap.at[1] == gap.at[0] + 1 && on_plane_of(v, i, gap.idx[0], gap.idx[1], tol)) return false;
   if (gap.count >= 2 && gap.at[1] == gap.at[0] + 1) {
     const double gstep = gap.r[1] - gap.r[0];
     if (std::fabs(ri - (gap.r[0] - gstep * gap.at[0])) <= std::max(tol, 0.5 * std::fabs(gstep) * gap.at[0])) return false;
@@ -215,6 +229,7 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
       if (nb.count < 2) return false;
       const double extrap = nb.r[0] - (nb.r[1] - nb.r[0]) / (nb.at[1] - nb.at[0]) * nb.at[0];
       if (std::fabs(ri - extrap) <= tol) return true;
+      if (on_plane_of(v, i, nb.idx[0], nb.idx[1], tol)) return true;
       if (!nb.has3) return false;
       // Quadratic through the side's three returns (at -at0, -at1, -at3), evaluated at 0.
       const double x0 = -nb.at[0], x1 = -nb.at[1], x2 = -nb.at3;
@@ -262,7 +277,7 @@ void mark_smooth(const ReturnsView& v, const std::vector<std::size_t>& seq, cons
     const double tol = tolerance_at(p, v.range[i], range_sigma);
     // Curved surfaces (ground at grazing incidence) bend by a few per cent of the local step.
     const double allow = tol + 0.05 * std::fabs(v.range[b] - v.range[a]);
-    if (std::fabs(v.range[i] - 0.5 * (v.range[a] + v.range[b])) > allow)
+    if (std::fabs(v.range[i] - 0.5 * (v.range[a] + v.range[b])) > allow && !(on_plane_of(v, i, a, b, tol)))
       smooth[i] = kRough;
     else
       smooth[i] = std::fabs(v.range[b] - v.range[a]) <= jump_at(p, v.range[i]) ? kFlat : kSmooth;

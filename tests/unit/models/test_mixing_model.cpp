@@ -70,6 +70,45 @@ TEST(MixingModel, AmplitudeAtRangeIsClampedAndRefusesNonsense) {
   EXPECT_TRUE(std::isnan(mixture_share(6.0, 5.0, 100, 5.0, 20)));
 }
 
+TEST(MixingModel, PlaneModelIsExactOnPlanesWhereRangeExtrapolationIsNot) {
+  // Three beams of one fan (equal angular steps) meet a random plane. The two outer returns
+  // predict the third exactly; extrapolating the range linearly does not at grazing incidence.
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  int tested = 0, linear_off = 0;
+  for (int k = 0; k < 3000; ++k) {
+    const Eigen::Vector3d o(u(rng), u(rng), 1.0 + u(rng));
+    const Eigen::Vector3d n = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
+    const double c = n.dot(o) - (1.0 + 10.0 * std::fabs(u(rng)));  // plane n.x = c, 1-11 m from o
+    const Eigen::Vector3d axis = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
+    const Eigen::Vector3d d0 = axis.unitOrthogonal();
+    const double step = 0.002 + 0.02 * std::fabs(u(rng));
+    double t[3];
+    Eigen::Vector3d dir[3], p[3];
+    bool ok = true;
+    for (int j = 0; j < 3; ++j) {
+      dir[j] = Eigen::AngleAxisd(step * j, axis) * d0;
+      const double den = n.dot(dir[j]);
+      t[j] = (c - n.dot(o)) / den;
+      ok = ok && std::fabs(den) > 0.05 && t[j] > 0 && t[j] < 60;  // in front, incidence below 87 deg
+      p[j] = o + t[j] * dir[j];
+    }
+    if (!ok) continue;
+    ++tested;
+    EXPECT_NEAR(range_on_line(o, dir[2], p[1], p[0]), t[2], 1e-6 * t[2]) << k;
+    linear_off += std::fabs((2 * t[1] - t[0]) - t[2]) > 0.01;
+  }
+  EXPECT_GT(tested, 300);
+  EXPECT_GT(linear_off, 0);  // a linear range trend misses grazing planes by centimetres
+}
+
+TEST(MixingModel, PlaneModelRefusesDegenerateLines) {
+  const Eigen::Vector3d o(0, 0, 0), d(1, 0, 0);
+  EXPECT_TRUE(std::isnan(range_on_line(o, d, {2, 1, 0}, {2, 1, 0})));  // one point
+  EXPECT_TRUE(std::isnan(range_on_line(o, d, {2, 1, 0}, {5, 1, 0})));  // parallel to the beam
+  EXPECT_NEAR(range_on_line(o, d, {3, -1, 0}, {3, 1, 0}), 3.0, 1e-12);  // a wall across it
+}
+
 TEST(MixingModel, AgreesWithTheRayTracedSimulator) {
   // A coaxial beam (nothing hidden from the receiver) straddling the vertical edge of a near box
   // in front of a far wall: the simulator's range and amplitude must be a mixture of the model's,

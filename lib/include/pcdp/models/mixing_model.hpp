@@ -9,8 +9,17 @@
 // alone, and then the amplitude is fixed: A = 1 / (w / P1 + (1 - w) / P2), a weighted harmonic mean
 // of P1 and P2 (mixture_amplitude_at). A non-coaxial receiver (Liu et al. 2005) can only lose
 // part of the far surface's light behind the edge, so a real mixture is never brighter than that.
+//
+// Plane model: a planar surface meets the fan of a scan in a straight line, so two returns on one
+// surface predict where a third beam meets it: the point of that beam's ray closest to the line
+// through the two returns (range_on_line). This is exact for planes at any incidence, where
+// extrapolating the range itself is not (ground at grazing incidence grows like 1 / sin of the
+// depression angle: its range steps grow from line to line). On curved surfaces its error is
+// second order in the step.
 
 #pragma once
+
+#include <Eigen/Core>
 
 namespace pcdp {
 
@@ -25,5 +34,11 @@ double mixture_share(double r, double d1, double p1, double d2, double p2);
 /// w = (d2 - r) / (d2 - d1), r clamped to [d1, d2] (outside it the nearest mixture is the pure
 /// surface). NaN when d2 <= d1 or an amplitude is not positive.
 double mixture_amplitude_at(double r, double d1, double p1, double d2, double p2);
+
+/// Range along the ray from `origin` in unit direction `dir` at its closest approach to the line
+/// through a and b (the plane model above). NaN when a and b coincide or the line runs within
+/// about 0.6 degrees of the ray (a surface seen exactly edge-on predicts nothing).
+double range_on_line(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, const Eigen::Vector3d& a,
+                     const Eigen::Vector3d& b);
 
 }  // namespace pcdp
