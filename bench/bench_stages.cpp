@@ -26,7 +26,14 @@ struct Data {
   PoseTrack poses;
   Eigen::Isometry3d T_V_N;
   Pass raw, registered, occluded, mixed;
-  Data() {
+  /// wide: a footprint 3.4 beam steps wide (721 beams over 180 deg, 15 mrad), where
+  /// reject_mixed_pixels runs its two extra rounds for runs of mixtures.
+  explicit Data(bool wide = false) {
+    if (wide) {
+      setting.sim.scanner.beams = 721;
+      setting.sim.scanner.beam_divergence = 0.015;
+      setting.sensor.beam_divergence = 0.015;
+    }
     setting.sim.passes = 1;
     const auto r = sim::simulate(setting.sim);
     poses = PoseTrack(r.poses);
@@ -42,6 +49,10 @@ struct Data {
 };
 const Data& data() {
   static const Data d;
+  return d;
+}
+const Data& wide_data() {
+  static const Data d(true);
   return d;
 }
 
@@ -77,6 +88,12 @@ static void BM_RejectMixedPixels(benchmark::State& state) {
   per_pass(state, d.occluded, [&](Pass& p) { reject_mixed_pixels(p, MixedPixelParams{}, d.setting.sensor); });
 }
 BENCHMARK(BM_RejectMixedPixels)->Threads(1)->Threads(2)->UseRealTime();
+
+static void BM_RejectMixedPixelsWideFootprint(benchmark::State& state) {
+  const Data& d = wide_data();
+  per_pass(state, d.occluded, [&](Pass& p) { reject_mixed_pixels(p, MixedPixelParams{}, d.setting.sensor); });
+}
+BENCHMARK(BM_RejectMixedPixelsWideFootprint)->Threads(1)->UseRealTime();
 
 static void BM_CheckConsistencyCollect(benchmark::State& state) {
   const Data& d = data();

@@ -159,7 +159,7 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
                        double range_sigma, bool coaxial, std::vector<char>& mixed) {
   for (std::size_t pos = 0; pos < seq.size(); ++pos) {
     const std::size_t i = seq[pos];
-    if (!v.usable[i] || mixed[i]) continue;
+    if (!v.usable[i] || mixed[i] || (v.focus && !v.focus[i])) continue;
     const double ri = v.range[i];
     const double tol = tolerance_at(p, ri, range_sigma);
     // Most returns lie inside a surface, with returns on both sides next to them (no void beside,
@@ -265,7 +265,7 @@ void mark_smooth(const ReturnsView& v, const std::vector<std::size_t>& seq, cons
                  double range_sigma, std::vector<char>& smooth) {
   for (std::size_t pos = 0; pos < seq.size(); ++pos) {
     const std::size_t i = seq[pos];
-    if (!v.usable[i]) continue;
+    if (!v.usable[i] || (v.focus && !v.focus[i])) continue;
     const bool has_a = pos > 0 && v.usable[seq[pos - 1]], has_b = pos + 1 < seq.size() && v.usable[seq[pos + 1]];
     if (has_a != has_b) {
       const double r_other = v.range[has_a ? seq[pos - 1] : seq[pos + 1]];
@@ -418,13 +418,20 @@ bool is_mixed(char edge, char other_direction) {
 
 namespace {
 /// One round of the tests over the returns still kept; labels what it finds.
-std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor) {
+std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor, const char* focus) {
   const std::size_t n = pass.size();
   if (pass.range_cal.size() != n) throw std::logic_error("reject_mixed_pixels needs a registered pass");
   std::vector<char> usable(n), mixed(n, 0);
   for (std::size_t i = 0; i < n; ++i) usable[i] = pass.is_kept(i) && std::isfinite(pass.x[i]);
   ReturnsView v{n, pass.x.data(), pass.y.data(), pass.z.data(), pass.ox.data(), pass.oy.data(), pass.oz.data(),
                 pass.range_cal.data(), pass.amplitude.data(), usable.data()};
+  v.focus = focus;
+  const auto in_focus = [&](std::size_t b, std::size_t e, std::size_t stride) {
+    if (!focus) return true;
+    for (std::size_t i = b; i < e; i += stride)
+      if (focus[i]) return true;
+    return false;
+  };
   const bool coaxial = sensor.transceiver_separation <= 0.0;
   // Candidates along and across lines (2: strong edge, 1: weak edge), and where each return lies
   // smoothly on a surface in each direction. A weak-edge candidate that is smooth in the other
@@ -437,6 +444,7 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
   }
   std::vector<std::size_t> seq;
   for (std::size_t k = 0; k < pass.line_count(); ++k) {
+    if (!in_focus(pass.line_begin[k], pass.line_begin[k + 1], 1)) continue;
     seq.clear();
     for (std::size_t i = pass.line_begin[k]; i < pass.line_begin[k + 1]; ++i) seq.push_back(i);
     mark_mixed_pixels(v, seq, p, sensor.range_sigma, coaxial, along);
@@ -459,6 +467,7 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
       if ((nod_of(k) - nod_of(k - 1)) * (nod_of(k - 1) - nod_of(k - 2)) < 0) sweep_begin.push_back(k);
     sweep_begin.push_back(pass.line_count());
     for (std::size_t b = 0; b < width; ++b) {
+      if (!in_focus(b, n, width)) continue;
       for (std::size_t s = 0; s + 1 < sweep_begin.size(); ++s) {
         seq.clear();
         for (std::size_t k = sweep_begin[s]; k < sweep_begin[s + 1]; ++k) seq.push_back(pass.line_begin[k] + b);
@@ -495,7 +504,7 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
   if (pass.range_cal.size() != pass.size()) throw std::logic_error("reject_mixed_pixels needs a registered pass");
   std::vector<char> before(pass.size()), last(pass.size());
   for (std::size_t i = 0; i < pass.size(); ++i) before[i] = pass.label[i] == Label::kMixedPixel;
-  std::size_t count = mark_round(pass, p, sensor);
+  std::size_t count = mark_round(pass, p, sensor, nullptr);
   const int rounds = extra_rounds(pass, sensor);
   // Where each return sits in its line, and the width of the lines if they are all alike
   // (organized: the same beam on the next line is `width` returns on).
@@ -509,22 +518,24 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
       for (std::size_t i = pass.line_begin[k]; i < pass.line_begin[k + 1]; ++i) column[i] = i - pass.line_begin[k];
     }
   }
+  std::vector<char> focus(rounds > 0 ? pass.size() : 0);
+  MixedPixelParams later = p;
+  later.spikes = false;  // a run of mixtures is an edge's; spikes were tested in the first round
   for (int round = 0; round < rounds && count > 0; ++round) {
     for (std::size_t i = 0; i < pass.size(); ++i) {
       last[i] = pass.label[i] == Label::kMixedPixel && !before[i];  // found in the round before
       before[i] = pass.label[i] == Label::kMixedPixel;
     }
-    mark_round(pass, p, sensor);
-    std::size_t added = 0;
+    std::size_t candidates = 0;
     for (std::size_t i = 0; i < pass.size(); ++i) {
-      if (pass.label[i] != Label::kMixedPixel || before[i]) continue;
       const std::size_t b = column[i];
       const bool in_line = (b > 0 && last[i - 1]) || (i + 1 < pass.size() && column[i + 1] == b + 1 && last[i + 1]);
       const bool across = width > 0 && ((i >= width && last[i - width]) || (i + width < pass.size() && last[i + width]));
-      const bool next_to_last = in_line || across;
-      if (next_to_last) ++added;
-      else pass.label[i] = Label::kKept;
+      focus[i] = !before[i] && pass.is_kept(i) && (in_line || across);
+      candidates += focus[i];
     }
+    if (candidates == 0) break;
+    const std::size_t added = mark_round(pass, later, sensor, focus.data());
     count += added;
     if (added == 0) break;
   }

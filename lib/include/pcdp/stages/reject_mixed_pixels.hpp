@@ -96,6 +96,9 @@ struct ReturnsView {
   /// returns there are, so a row ends where the returns stop; an organized scan's lines end at
   /// the edge of its field of view, which says nothing about a missing surface.
   bool ends_are_voids = false;
+  /// If set, only these returns are tested (their neighbours still count): the later rounds for
+  /// runs of mixtures test only the returns next to one found in the round before.
+  const char* focus = nullptr;
 };
 
 /// What `mark_mixed_pixels` found at a return, in one scan direction.
