@@ -31,17 +31,23 @@
 // top surface over the cell grown by 5 cm on each side (Scene::top_height sampled on 7 x 7 points;
 // the margin takes in a vertical face's points registered into the cell in front of it): above =
 // surface minus the highest true top there, a phantom obstacle when > 0.3 m; below = lowest true
-// top minus surface (a top not seen, e.g. only the ground under a table).
+// top minus surface (a top not seen, e.g. only the ground under a table). The same grid is also
+// made after check_consistency over the setting's passes (the main pipeline's next stage, as in
+// pipelines/nodding_terrain.yaml): column "+cc", its phantom cells.
 //
 // Usage: pcdp_mixed_sweep [--set tuning|heldout] [--index N]... [--json FILE] [--misses K] [--rank recall|f1|valid]
 //                         [--require-recall R] [--require-valid-rejected PCT] [--require-occlusion-recall R]
-//                         [--require-phantom-cells N]
+//                         [--require-phantom-cells N] [--dump-misses K]
+// --dump-misses K prints every K-th miss: its range, the lit depths, its near share and amplitude,
+// then range, truth (V valid, M mixed, O occlusion, L low amplitude, N none) and label initial of
+// its in-line neighbours (4 each side) and across lines (2 each side).
 // The --require options check the pooled numbers (exit 1 naming each one missed): CI runs both sets
 // with a margin below today's numbers (bench/CMakeLists.txt), so a regression fails the build.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <map>
 #include <random>
@@ -52,6 +58,7 @@
 #include "pcdp/core/transforms.hpp"
 #include "pcdp/pipeline/config.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
+#include "pcdp/fusion/consistency.hpp"
 #include "pcdp/stages/fuse_elevation.hpp"
 #include "pcdp/stages/register.hpp"
 #include "pcdp/stages/reject_mixed_pixels.hpp"
@@ -60,6 +67,7 @@
 using namespace pcdp;
 
 namespace {
+int g_dump_every = 0;  ///< --dump-misses K: print every K-th miss with its neighbours
 constexpr double kPi = 3.14159265358979323846;
 
 struct SweepSetting {
@@ -231,7 +239,7 @@ struct Result {
   std::string sensor;
   std::uint64_t returns = 0, mixed = 0, mixed_rejected = 0, mixed_reaching = 0, valid = 0, valid_rejected = 0;
   std::uint64_t valid_rejected_mixed = 0, occlusion = 0, occlusion_rejected = 0, low_amplitude = 0, low_rejected = 0;
-  std::uint64_t cells = 0, phantom_cells = 0;
+  std::uint64_t cells = 0, phantom_cells = 0, phantom_cells_cc = 0;  ///< cc: after check_consistency too
   std::map<std::string, std::uint64_t> phantom_points;  ///< kept points > 0.3 m above their cell's true top, by truth label
   double elev_above = 0, elev_below = 0, seconds = 0;
   std::vector<Miss> misses;
@@ -282,6 +290,7 @@ Result run_setting(const SweepSetting& st) {
   rp.max_pose_gap = 0.5;  // as pipelines/nodding_terrain.yaml
   const FuseElevationParams fep;
   ElevationGrid grid = make_elevation_grid(fep);
+  std::vector<Pass> filtered;  // after reject_mixed_pixels, for check_consistency
   for (const auto& sp : r.passes) {
     Pass p = sp.pass;
     register_pass(p, rp, st.sensor, T_V_N, &poses, PoseSigma{}, c.rpy_order);
@@ -290,6 +299,7 @@ Result run_setting(const SweepSetting& st) {
     for (std::size_t i = 0; i < p.size(); ++i) reaching[i] = p.is_kept(i);
     reject_mixed_pixels(p, MixedPixelParams{}, st.sensor);
     fuse_pass(grid, p, fep, st.sensor.range_sigma * st.sensor.range_sigma);
+    filtered.push_back(p);
     for (std::size_t i = 0; i < p.size(); ++i) {
       if (!p.is_kept(i) || !(p.z[i] > c.scene.top_height(p.x[i], p.y[i]) + 0.3)) continue;
       if (p.z[i] > cell_top(c.scene, grid.resolution(), grid.cell_index(p.x[i]), grid.cell_index(p.y[i])).second + 0.3)
@@ -316,6 +326,23 @@ Result run_setting(const SweepSetting& st) {
         if (b + 1 < nb) din = std::max(din, dev(i + 1));
         if (i >= nb) dac = std::max(dac, dev(i - nb));
         if (i + nb < p.size()) dac = std::max(dac, dev(i + nb));
+        if (g_dump_every > 0 && (res.misses.size() % static_cast<std::size_t>(g_dump_every)) == 0) {
+          std::printf("miss r=%.3f near %.3f far %.3f share %.2f amp %.0f |", ri, f.near, f.far, f.near_power_share, p.amplitude[i]);
+          for (long d = -4; d <= 4; ++d) {
+            const long j = static_cast<long>(i) + d;
+            if (static_cast<long>(b) + d < 0 || static_cast<long>(b) + d >= static_cast<long>(nb)) continue;
+            const std::size_t u = static_cast<std::size_t>(j);
+            std::printf(" %.3f%c%c%.0f", p.range_cal[u], "VNOMRXLPI"[static_cast<int>(sp.truth[u])], label_name(p.label[u])[0], p.amplitude[u]);
+          }
+          std::printf(" | across:");
+          for (long d = -2; d <= 2; ++d) {
+            const long j = static_cast<long>(i) + d * static_cast<long>(nb);
+            if (j < 0 || j >= static_cast<long>(p.size())) continue;
+            const std::size_t u = static_cast<std::size_t>(j);
+            std::printf(" %.3f%c%c", p.range_cal[u], "VNOMRXLPI"[static_cast<int>(sp.truth[u])], label_name(p.label[u])[0]);
+          }
+          std::printf("\n");
+        }
         res.misses.push_back({ri, f.far - f.near, din, dac, f.near_power_share, f.near_reflectivity, f.far_reflectivity,
                               st.kind_of(f.near_object), st.kind_of(f.far_object)});
       } else if (t == Label::kKept && l != Label::kNoReturn && l != Label::kOutOfRange && l != Label::kNoPose) {
@@ -337,6 +364,23 @@ Result run_setting(const SweepSetting& st) {
         res.low_rejected += l != Label::kKept;
       }
     }
+  }
+  // The main pipeline (pipelines/nodding_terrain.yaml) also runs check_consistency: other passes'
+  // rays through a return's voxel, and no other pass's return near it, contradict it.
+  {
+    ConsistencyEvidence ev{ConsistencyParams{}};
+    for (const Pass& p : filtered) ev.add_pass(p);
+    ev.finalize();
+    ElevationGrid grid_cc = make_elevation_grid(fep);
+    for (Pass& p : filtered) {
+      ev.label(p);
+      fuse_pass(grid_cc, p, fep, st.sensor.range_sigma * st.sensor.range_sigma);
+    }
+    grid_cc.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& cell) {
+      double e = 0, var = 0;
+      if (!grid_cc.surface(cell, e, var)) return;
+      res.phantom_cells_cc += e - cell_top(c.scene, grid_cc.resolution(), ix, iy).second > 0.3;
+    });
   }
   // Elevation against the true top surface.
   const double rs = grid.resolution();
@@ -371,6 +415,7 @@ Result pool(const std::vector<Result>& rs) {
     p.low_rejected += r.low_rejected;
     p.cells += r.cells;
     p.phantom_cells += r.phantom_cells;
+    p.phantom_cells_cc += r.phantom_cells_cc;
     p.elev_above = std::max(p.elev_above, r.elev_above);
     p.elev_below = std::max(p.elev_below, r.elev_below);
     p.seconds += r.seconds;
@@ -382,11 +427,11 @@ Result pool(const std::vector<Result>& rs) {
 }
 
 void print_row(const Result& r) {
-  std::printf("%5s %-44s %7llu %6.3f %6.2f %% %6.3f %6llu %6.3f %6.2f %6.2f %5llu %6.1f\n",
+  std::printf("%5s %-44s %7llu %6.3f %6.2f %% %6.3f %6llu %6.3f %6.2f %6.2f %5llu %5llu %6.1f\n",
               r.index < 0 ? "all" : std::to_string(r.index).c_str(), r.sensor.c_str(),
               static_cast<unsigned long long>(r.mixed), r.recall(), 100 * r.valid_rate(), r.f1(),
               static_cast<unsigned long long>(r.occlusion), r.occ_recall(), r.elev_above, r.elev_below,
-              static_cast<unsigned long long>(r.phantom_cells), r.seconds);
+              static_cast<unsigned long long>(r.phantom_cells), static_cast<unsigned long long>(r.phantom_cells_cc), r.seconds);
 }
 
 double median(std::vector<double> v) {
@@ -456,14 +501,15 @@ void json_row(FILE* f, const Result& r, const char* name) {
                "\"mixed_reaching_filter\": %llu, \"valid\": %llu, \"valid_rejected\": %llu, \"valid_rejected_pct\": %.4f, "
                "\"valid_rejected_as_mixed\": %llu, \"f1\": %.4f, \"occlusion\": %llu, \"occlusion_recall\": %.4f, "
                "\"low_amplitude\": %llu, \"low_amplitude_rejected\": %llu, \"elevation_cells\": %llu, "
-               "\"elevation_max_above_m\": %.3f, \"elevation_max_below_m\": %.3f, \"phantom_cells\": %llu, \"seconds\": %.2f}",
+               "\"elevation_max_above_m\": %.3f, \"elevation_max_below_m\": %.3f, \"phantom_cells\": %llu, "
+               "\"phantom_cells_with_check_consistency\": %llu, \"seconds\": %.2f}",
                name, r.sensor.c_str(), static_cast<unsigned long long>(r.returns), static_cast<unsigned long long>(r.mixed),
                r.recall(), static_cast<unsigned long long>(r.mixed_reaching), static_cast<unsigned long long>(r.valid),
                static_cast<unsigned long long>(r.valid_rejected), 100 * r.valid_rate(),
                static_cast<unsigned long long>(r.valid_rejected_mixed), r.f1(), static_cast<unsigned long long>(r.occlusion),
                r.occ_recall(), static_cast<unsigned long long>(r.low_amplitude), static_cast<unsigned long long>(r.low_rejected),
                static_cast<unsigned long long>(r.cells), r.elev_above, r.elev_below,
-               static_cast<unsigned long long>(r.phantom_cells), r.seconds);
+               static_cast<unsigned long long>(r.phantom_cells), static_cast<unsigned long long>(r.phantom_cells_cc), r.seconds);
 }
 }  // namespace
 
@@ -482,6 +528,7 @@ int main(int argc, char** argv) {
     else if (k == "--json" && has) json = argv[++a];
     else if (k == "--misses" && has) worst = std::atoi(argv[++a]);
     else if (k == "--rank" && has) rank = argv[++a];
+    else if (k == "--dump-misses" && has) g_dump_every = std::atoi(argv[++a]);
     else if (k == "--require-recall" && has) need_recall = std::atof(argv[++a]);
     else if (k == "--require-valid-rejected" && has) need_valid = std::atof(argv[++a]);
     else if (k == "--require-occlusion-recall" && has) need_occlusion = std::atof(argv[++a]);
@@ -490,6 +537,7 @@ int main(int argc, char** argv) {
       std::fprintf(stderr,
                    "usage: %s [--set tuning|heldout] [--index N]... [--json FILE] [--misses K] [--rank recall|f1|valid]\n"
                    "          [--require-recall R] [--require-valid-rejected PCT] [--require-occlusion-recall R] [--require-phantom-cells N]\n"
+                   "          [--dump-misses K]\n"
                    "  --misses K: analyse the misses of the K worst settings by --rank (default 3, recall)\n"
                    "  tuning: settings 0-23; heldout: 1000-1015 (never used for tuning)\n",
                    argv[0]);
@@ -506,8 +554,8 @@ int main(int argc, char** argv) {
   } else {
     set = "chosen";
   }
-  std::printf("%5s %-44s %7s %6s %8s %6s %6s %6s %6s %6s %5s %6s\n", "set", "sensor (beams/span, div, s-q, geom, lines/s, nod, v)",
-              "mixed", "recall", "valid rj", "F1", "occl", "recall", "el+ m", "el- m", "phant", "s");
+  std::printf("%5s %-44s %7s %6s %8s %6s %6s %6s %6s %6s %5s %5s %6s\n", "set", "sensor (beams/span, div, s-q, geom, lines/s, nod, v)",
+              "mixed", "recall", "valid rj", "F1", "occl", "recall", "el+ m", "el- m", "phant", "+cc", "s");
   std::vector<Result> results;
   for (int i : indices) {
     results.push_back(run_setting(make_sweep_setting(i)));
