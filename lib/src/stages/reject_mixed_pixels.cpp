@@ -40,6 +40,7 @@ const OptionSchema& reject_mixed_pixels_schema() { return reject_mixed_pixels_op
 
 namespace {
 constexpr int kMaxExtraRounds = 2;
+constexpr int kRoundWindow = 3;  ///< returns searched each way in the rounds after the first
 /// The smallest range step that makes an edge at range r (jump_min, or jump_ratio of r if larger).
 double jump_at(const MixedPixelParams& p, double r) { return std::max(p.jump_min, p.jump_ratio * r); }
 /// How far from a surface a return at range r may lie and still be on it.
@@ -418,7 +419,8 @@ bool is_mixed(char edge, char other_direction) {
 
 namespace {
 /// One round of the tests over the returns still kept; labels what it finds.
-std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor, const char* focus) {
+std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor, const char* focus,
+                       bool across_edges) {
   const std::size_t n = pass.size();
   if (pass.range_cal.size() != n) throw std::logic_error("reject_mixed_pixels needs a registered pass");
   std::vector<char> usable(n), mixed(n, 0);
@@ -471,7 +473,7 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
       for (std::size_t s = 0; s + 1 < sweep_begin.size(); ++s) {
         seq.clear();
         for (std::size_t k = sweep_begin[s]; k < sweep_begin[s + 1]; ++k) seq.push_back(pass.line_begin[k] + b);
-        mark_mixed_pixels(v, seq, p, sensor.range_sigma, coaxial, across);
+        if (across_edges) mark_mixed_pixels(v, seq, p, sensor.range_sigma, coaxial, across);
         mark_smooth(v, seq, p, sensor.range_sigma, smooth_across);
         if (p.spikes) mark_spikes_off_surface(v, seq, p, sensor.range_sigma, spike, behind_r, behind_a, spike_off);
       }
@@ -504,10 +506,10 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
   if (pass.range_cal.size() != pass.size()) throw std::logic_error("reject_mixed_pixels needs a registered pass");
   std::vector<char> before(pass.size()), last(pass.size());
   for (std::size_t i = 0; i < pass.size(); ++i) before[i] = pass.label[i] == Label::kMixedPixel;
-  std::size_t count = mark_round(pass, p, sensor, nullptr);
+  std::size_t count = mark_round(pass, p, sensor, nullptr, true);
   const int rounds = extra_rounds(pass, sensor);
-  // Where each return sits in its line, and the width of the lines if they are all alike
-  // (organized: the same beam on the next line is `width` returns on).
+  // Where each return sits in its line, and the lines' width if they are all alike (organized:
+  // the same beam on the next line is `width` returns on).
   std::vector<std::size_t> column;
   std::size_t width = 0;
   if (rounds > 0) {
@@ -519,8 +521,12 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
     }
   }
   std::vector<char> focus(rounds > 0 ? pass.size() : 0);
+  // The later rounds look at most kRoundWindow returns each way for a run's sides (a run's
+  // sides are next to it), so each adds kRoundWindow + 1 lines to the stage's reach. No spikes:
+  // a run is an edge's.
   MixedPixelParams later = p;
-  later.spikes = false;  // a run of mixtures is an edge's; spikes were tested in the first round
+  later.spikes = false;
+  later.window = std::min(p.window, kRoundWindow);
   for (int round = 0; round < rounds && count > 0; ++round) {
     for (std::size_t i = 0; i < pass.size(); ++i) {
       last[i] = pass.label[i] == Label::kMixedPixel && !before[i];  // found in the round before
@@ -535,7 +541,7 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
       candidates += focus[i];
     }
     if (candidates == 0) break;
-    const std::size_t added = mark_round(pass, later, sensor, focus.data());
+    const std::size_t added = mark_round(pass, later, sensor, focus.data(), true);
     count += added;
     if (added == 0) break;
   }
@@ -610,7 +616,10 @@ class RejectMixedPixelsStage final : public Stage {
   // to read a nod reversal at the last of them.
   int reach() const override {
     if (!params_.across_lines) return 0;
-    return std::max(params_.window, params_.spikes ? static_cast<int>(kObjectReach) : 0) + 1 + kMaxExtraRounds;
+    // Each extra round (runs of mixtures) reads its narrower window across the lines the round
+    // before labelled.
+    return std::max(params_.window, params_.spikes ? static_cast<int>(kObjectReach) : 0) + 1 +
+           kMaxExtraRounds * (std::min(params_.window, kRoundWindow) + 1);
   }
   void label(Pass& pass, StageReport&) const override { reject_mixed_pixels(pass, params_, sensor_); }
 

@@ -175,6 +175,36 @@ TEST(Stream, ANarrowMixedPixelWindowStillWaitsForTheSpikesObject) {
   EXPECT_GT(mixed, 100u);
 }
 
+TEST(Stream, AWideFootprintsExtraRoundsStreamAsTheBatchRun) {
+  // With a footprint 2.5 beam steps wide (25 mrad on the sample's 10 mrad steps),
+  // reject_mixed_pixels runs two more rounds, each looking `window` lines across
+  // from the marks of the round before: its reach covers all three rounds.
+  const std::string dir = test::fresh_dir();
+  const auto wide = [&](const std::string &out) {
+    std::string y = streaming_yaml(out, true);
+    const std::string from = "beam_divergence: 0.008";
+    const auto at = y.find(from);
+    EXPECT_NE(at, std::string::npos);
+    y.replace(at, from.size(), "beam_divergence: 0.025");
+    return load_pipeline_from_string(y, "streaming.yaml",
+                                     std::string(PCDP_SOURCE_DIR) + "/pipelines");
+  };
+  const PipelineConfig cfg = wide(dir + "/batch");
+  Pipeline::prepare(cfg).run();
+  const auto label =
+      test::column(io::read_pcd(dir + "/batch/returns.pcd"), "label");
+  LineStream s(wide(dir + "/unused"), 1);
+  const Streamed st = stream_all(s, cfg.scans);
+  ASSERT_EQ(st.label.size(), label.size());
+  std::size_t label_diff = 0, mixed = 0;
+  for (std::size_t i = 0; i < label.size(); ++i) {
+    label_diff += static_cast<double>(st.label[i]) != label[i];
+    mixed += st.label[i] == Label::kMixedPixel;
+  }
+  EXPECT_EQ(label_diff, 0u);
+  EXPECT_GT(mixed, 100u);
+}
+
 TEST(Stream, LivePosesGiveTheSameAsThePoseFile) {
   const std::string dir = test::fresh_dir();
   const PipelineConfig with_file = streaming_config(dir, true);
