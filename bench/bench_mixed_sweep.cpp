@@ -513,6 +513,17 @@ void json_row(FILE* f, const Result& r, const char* name) {
 }
 }  // namespace
 
+/// A --require value: a non-negative number, or exit 2 naming it (a typo must not disable a check).
+double number(const char* text) {
+  char* end = nullptr;
+  const double v = std::strtod(text, &end);
+  if (end == text || *end != '\0' || !(v >= 0)) {
+    std::fprintf(stderr, "pcdp_mixed_sweep: '%s' is not a non-negative number\n", text);
+    std::exit(2);
+  }
+  return v;
+}
+
 int main(int argc, char** argv) {
   std::string set = "tuning", json;
   std::vector<int> indices;
@@ -529,10 +540,10 @@ int main(int argc, char** argv) {
     else if (k == "--misses" && has) worst = std::atoi(argv[++a]);
     else if (k == "--rank" && has) rank = argv[++a];
     else if (k == "--dump-misses" && has) g_dump_every = std::atoi(argv[++a]);
-    else if (k == "--require-recall" && has) need_recall = std::atof(argv[++a]);
-    else if (k == "--require-valid-rejected" && has) need_valid = std::atof(argv[++a]);
-    else if (k == "--require-occlusion-recall" && has) need_occlusion = std::atof(argv[++a]);
-    else if (k == "--require-phantom-cells" && has) need_phantom = std::atol(argv[++a]);
+    else if (k == "--require-recall" && has) need_recall = number(argv[++a]);
+    else if (k == "--require-valid-rejected" && has) need_valid = number(argv[++a]);
+    else if (k == "--require-occlusion-recall" && has) need_occlusion = number(argv[++a]);
+    else if (k == "--require-phantom-cells" && has) need_phantom = static_cast<long>(number(argv[++a]));
     else {
       std::fprintf(stderr,
                    "usage: %s [--set tuning|heldout] [--index N]... [--json FILE] [--misses K] [--rank recall|f1|valid]\n"

@@ -28,16 +28,20 @@ double mixture_amplitude_at(double r, double d1, double p1, double d2, double p2
 }
 
 double range_on_line(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, const Eigen::Vector3d& a,
-                     const Eigen::Vector3d& b) {
+                     const Eigen::Vector3d& b, double* miss) {
+  if (miss) *miss = NAN;
   Eigen::Vector3d e = b - a;
   const double len = e.norm();
   if (!(len > 1e-9)) return NAN;
   e /= len;
   const double c = dir.dot(e);
   const double den = 1.0 - c * c;  // sin^2 of the angle between ray and line
-  if (den < 1e-4) return NAN;
+  if (!(den >= 1e-4)) return NAN;
   const Eigen::Vector3d w0 = origin - a;
-  return (c * e.dot(w0) - dir.dot(w0)) / den;
+  const double dw = dir.dot(w0), ew = e.dot(w0);
+  const double t = (c * ew - dw) / den;  // along the ray
+  if (miss) *miss = (w0 + t * dir - ((ew - c * dw) / den) * e).norm();
+  return t;
 }
 
 }  // namespace pcdp

@@ -10,35 +10,8 @@
 
 namespace pcdp {
 
-const Options<MixedPixelParams>& reject_mixed_pixels_options() {
-  using P = MixedPixelParams;
-  static const auto o = Options<P>()
-      .add("window", &P::window, bounds(1, 100), "returns", "how far to search on each side for neighbours")
-      .add("jump_min", &P::jump_min, bounds(0, 100), "m", "smallest range step between the two sides that makes an edge")
-      .add("jump_ratio", &P::jump_ratio, bounds(0, 10), "", "... or this fraction of the near range, if larger")
-      .add("range_tolerance", &P::range_tolerance, bounds(0, 10), "m", "a return within this (+ ratio * r + 3 range_sigma) of a surface is on it")
-      .add("range_tolerance_ratio", &P::range_tolerance_ratio, bounds(0, 1), "", "relative part of the tolerance")
-      .add("edge_factor", &P::edge_factor, bounds(0.1, 100), "", "a strong edge: the range changes this many times faster across the return than within each side")
-      .add("weak_edge_factor", &P::weak_edge_factor, bounds(0.1, 100), "", "a weak edge (flagged only where the return is not smooth in the other direction)")
-      .add("max_angle", &P::max_angle, bounds(0, 1.5708), "rad", "largest angle between the beam and the segment to a neighbour")
-      .add("amplitude_ratio", &P::amplitude_ratio, bounds(0, 10), "", "a mixture may be this much brighter than predicted (relative)")
-      .add("amplitude_slack", &P::amplitude_slack, bounds(0, 255), "", "... plus this (amplitude units)")
-      .add("across_lines", &P::across_lines, "also look across scan lines (same beam)")
-      .add("max_span", &P::max_span, bounds(2, 100), "returns", "the two sides' nearest neighbours may be at most this many steps apart")
-      .add("amplitude_saturation", &P::amplitude_saturation, bounds(0, 1e9), "", "amplitudes at or above this are clipped: the mixing test is skipped")
-      .add("one_sided", &P::one_sided, "beside a void, flag returns that break sharply from their one visible surface")
-      .add("spikes", &P::spikes, "flag a run of returns a few beams wide in front of the surface on both sides along its line whose range changes across lines (a mixture with a thin object)")
-      .add("spike_width", &P::spike_width, bounds(1, 16), "returns", "widest run along a line the spike test takes for a thin object (or a mixture with one)")
-      .add("spike_dim_ratio", &P::spike_dim_ratio, bounds(0, 1), "", "a spike that keeps its range across lines is still a mixture if dimmer than this times its object's brightest return there, and brighter than the surface behind (0: off)")
-      .rule("weak_edge_factor <= edge_factor", [](const P& p) { return p.weak_edge_factor <= p.edge_factor; },
-            "a weak edge is a lower bar than a strong one",
-            "option 'weak_edge_factor' = {weak_edge_factor} must not exceed 'edge_factor' = {edge_factor}");
-  return o;
-}
-
-const OptionSchema& reject_mixed_pixels_schema() { return reject_mixed_pixels_options().schema(); }
-
 namespace {
+constexpr double kPi = 3.14159265358979323846;
 constexpr int kMaxExtraRounds = 2;
 constexpr int kRoundWindow = 3;  ///< returns searched each way in the rounds after the first
 /// The smallest range step that makes an edge at range r (jump_min, or jump_ratio of r if larger).
@@ -98,8 +71,9 @@ bool on_plane_of(const ReturnsView& v, std::size_t i, std::size_t a, std::size_t
   const Eigen::Vector3d d = p - o;
   const double r = d.norm();
   if (!(r > 0)) return false;
-  const double pred = range_on_line(o, d / r, {v.x[a], v.y[a], v.z[a]}, {v.x[b], v.y[b], v.z[b]});
-  return std::fabs(r - pred) <= tol;  // false for NaN: no prediction
+  double miss = NAN;
+  const double pred = range_on_line(o, d / r, {v.x[a], v.y[a], v.z[a]}, {v.x[b], v.y[b], v.z[b]}, &miss);
+  return std::fabs(r - pred) <= tol && miss <= tol;  // false for NaN: no prediction
 }
 
 double angle_to(const ReturnsView& v, std::size_t i, std::size_t j) {
@@ -419,8 +393,7 @@ bool is_mixed(char edge, char other_direction) {
 
 namespace {
 /// One round of the tests over the returns still kept; labels what it finds.
-std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor, const char* focus,
-                       bool across_edges) {
+std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor, const char* focus) {
   const std::size_t n = pass.size();
   if (pass.range_cal.size() != n) throw std::logic_error("reject_mixed_pixels needs a registered pass");
   std::vector<char> usable(n), mixed(n, 0);
@@ -473,7 +446,7 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
       for (std::size_t s = 0; s + 1 < sweep_begin.size(); ++s) {
         seq.clear();
         for (std::size_t k = sweep_begin[s]; k < sweep_begin[s + 1]; ++k) seq.push_back(pass.line_begin[k] + b);
-        if (across_edges) mark_mixed_pixels(v, seq, p, sensor.range_sigma, coaxial, across);
+        mark_mixed_pixels(v, seq, p, sensor.range_sigma, coaxial, across);
         mark_smooth(v, seq, p, sensor.range_sigma, smooth_across);
         if (p.spikes) mark_spikes_off_surface(v, seq, p, sensor.range_sigma, spike, behind_r, behind_a, spike_off);
       }
@@ -495,10 +468,26 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
 /// inner ones have another mixture, not a surface, as their nearest neighbour. Each round peels
 /// the outer mixtures of a run (only returns next to one found in the round before count).
 int extra_rounds(const Pass& pass, const SensorParams& sensor) {
-  if (pass.line_count() == 0 || pass.line_begin[1] - pass.line_begin[0] < 2) return 0;
-  const double step = std::fabs(static_cast<double>(pass.bearing[1]) - static_cast<double>(pass.bearing[0]));
-  if (!(step > 0)) return 0;
-  return std::min(kMaxExtraRounds, static_cast<int>(sensor.beam_divergence / step));
+  // The bearing step: the median |difference| of neighbouring bearings on the first line with at
+  // least three returns (bearings may wrap at +-pi; an organized scan has the same on every line,
+  // so a streamed window finds the step the whole pass does).
+  for (std::size_t k = 0; k < pass.line_count(); ++k) {
+    const std::size_t b = pass.line_begin[k], e = pass.line_begin[k + 1];
+    if (e - b < 3) continue;
+    std::vector<double> d;
+    d.reserve(e - b - 1);
+    for (std::size_t i = b + 1; i < e; ++i) {
+      double x = std::fabs(static_cast<double>(pass.bearing[i]) - static_cast<double>(pass.bearing[i - 1]));
+      if (x > kPi) x = 2 * kPi - x;
+      if (std::isfinite(x)) d.push_back(x);
+    }
+    if (d.empty()) return 0;
+    std::nth_element(d.begin(), d.begin() + static_cast<long>(d.size() / 2), d.end());
+    const double step = d[d.size() / 2];
+    if (!(step > 0) || !std::isfinite(sensor.beam_divergence)) return 0;
+    return static_cast<int>(std::min(static_cast<double>(kMaxExtraRounds), std::floor(sensor.beam_divergence / step)));
+  }
+  return 0;
 }
 }  // namespace
 
@@ -506,7 +495,7 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
   if (pass.range_cal.size() != pass.size()) throw std::logic_error("reject_mixed_pixels needs a registered pass");
   std::vector<char> before(pass.size()), last(pass.size());
   for (std::size_t i = 0; i < pass.size(); ++i) before[i] = pass.label[i] == Label::kMixedPixel;
-  std::size_t count = mark_round(pass, p, sensor, nullptr, true);
+  std::size_t count = mark_round(pass, p, sensor, nullptr);
   const int rounds = extra_rounds(pass, sensor);
   // Where each return sits in its line, and the lines' width if they are all alike (organized:
   // the same beam on the next line is `width` returns on).
@@ -536,12 +525,13 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
     for (std::size_t i = 0; i < pass.size(); ++i) {
       const std::size_t b = column[i];
       const bool in_line = (b > 0 && last[i - 1]) || (i + 1 < pass.size() && column[i + 1] == b + 1 && last[i + 1]);
-      const bool across = width > 0 && ((i >= width && last[i - width]) || (i + width < pass.size() && last[i + width]));
+      const bool across = p.across_lines && width > 0 &&
+                          ((i >= width && last[i - width]) || (i + width < pass.size() && last[i + width]));
       focus[i] = !before[i] && pass.is_kept(i) && (in_line || across);
       candidates += focus[i];
     }
     if (candidates == 0) break;
-    const std::size_t added = mark_round(pass, later, sensor, focus.data(), true);
+    const std::size_t added = mark_round(pass, later, sensor, focus.data());
     count += added;
     if (added == 0) break;
   }
@@ -617,9 +607,9 @@ class RejectMixedPixelsStage final : public Stage {
   int reach() const override {
     if (!params_.across_lines) return 0;
     // Each extra round (runs of mixtures) reads its narrower window across the lines the round
-    // before labelled.
+    // before labelled (the nod reversals it also reads are raw data: no more lines).
     return std::max(params_.window, params_.spikes ? static_cast<int>(kObjectReach) : 0) + 1 +
-           kMaxExtraRounds * (std::min(params_.window, kRoundWindow) + 1);
+           kMaxExtraRounds * std::min(params_.window, kRoundWindow);
   }
   void label(Pass& pass, StageReport&) const override { reject_mixed_pixels(pass, params_, sensor_); }
 

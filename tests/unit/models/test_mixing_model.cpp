@@ -95,7 +95,9 @@ TEST(MixingModel, PlaneModelIsExactOnPlanesWhereRangeExtrapolationIsNot) {
     }
     if (!ok) continue;
     ++tested;
-    EXPECT_NEAR(range_on_line(o, dir[2], p[1], p[0]), t[2], 1e-6 * t[2]) << k;
+    double miss = -1;
+    EXPECT_NEAR(range_on_line(o, dir[2], p[1], p[0], &miss), t[2], 1e-6 * t[2]) << k;
+    EXPECT_NEAR(miss, 0.0, 1e-6 * t[2]) << k;  // one fan: the ray meets the line
     linear_off += std::fabs((2 * t[1] - t[0]) - t[2]) > 0.01;
   }
   EXPECT_GT(tested, 300);
@@ -107,6 +109,11 @@ TEST(MixingModel, PlaneModelRefusesDegenerateLines) {
   EXPECT_TRUE(std::isnan(range_on_line(o, d, {2, 1, 0}, {2, 1, 0})));  // one point
   EXPECT_TRUE(std::isnan(range_on_line(o, d, {2, 1, 0}, {5, 1, 0})));  // parallel to the beam
   EXPECT_NEAR(range_on_line(o, d, {3, -1, 0}, {3, 1, 0}), 3.0, 1e-12);  // a wall across it
+  double miss = -1;
+  EXPECT_NEAR(range_on_line(o, d, {3, -1, 0.5}, {3, 1, 0.5}, &miss), 3.0, 1e-12);  // passes 0.5 m above the beam
+  EXPECT_NEAR(miss, 0.5, 1e-12);
+  EXPECT_TRUE(std::isnan(range_on_line(o, d, {2, 1, 0}, {2, 1, 0}, &miss)));
+  EXPECT_TRUE(std::isnan(miss));
 }
 
 TEST(MixingModel, AgreesWithTheRayTracedSimulator) {

@@ -14,8 +14,8 @@
 // surface predict where a third beam meets it: the point of that beam's ray closest to the line
 // through the two returns (range_on_line). This is exact for planes at any incidence, where
 // extrapolating the range itself is not (ground at grazing incidence grows like 1 / sin of the
-// depression angle: its range steps grow from line to line). On curved surfaces its error is
-// second order in the step.
+// depression angle: its range steps grow from line to line) when the three beams lie in one
+// plane (one scan line); on curved surfaces its error is second order in the step.
 
 #pragma once
 
@@ -37,8 +37,11 @@ double mixture_amplitude_at(double r, double d1, double p1, double d2, double p2
 
 /// Range along the ray from `origin` in unit direction `dir` at its closest approach to the line
 /// through a and b (the plane model above). NaN when a and b coincide or the line runs within
-/// about 0.6 degrees of the ray (a surface seen exactly edge-on predicts nothing).
+/// about 0.6 degrees of the ray (a surface seen exactly edge-on predicts nothing). `miss`, if
+/// given, gets the distance between ray and line there: 0 when the three beams lie in one plane
+/// (along a scan line); across lines of a nodding scan they are only nearly so, and a large miss
+/// means the prediction is not about this beam's surface.
 double range_on_line(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, const Eigen::Vector3d& a,
-                     const Eigen::Vector3d& b);
+                     const Eigen::Vector3d& b, double* miss = nullptr);
 
 }  // namespace pcdp

@@ -20,7 +20,8 @@
 //         r = (f P1 d1 + (1 - f) P2 d2) / (f P1 + (1 - f) P2),   A = f P1 + (1 - f) P2,
 //     so f follows from r, and A must agree with the mixture: not brighter than
 //     A (1 + amplitude_ratio) + amplitude_slack (a non-coaxial receiver can only lose light, so a
-//     dimmer return is allowed unless the sensor is coaxial). Unknown (NaN) amplitudes skip this.
+//     dimmer return is allowed unless the sensor is coaxial). Unknown (NaN) or clipped amplitudes,
+//     a side of amplitude 0, and sides whose trends cross (d2 <= d1) skip this test.
 // Corners: where a side's first step is itself an edge, more than 3 times its next (a face seen
 // edge-on, one return wide, then another surface), the next step stands in for the side's rate;
 // such a candidate is a veil only where the return is not flat in the other direction.
