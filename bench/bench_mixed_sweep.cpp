@@ -58,6 +58,7 @@
 #include "pcdp/core/transforms.hpp"
 #include "pcdp/pipeline/config.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
+#include "sim/bench_scenes.hpp"
 #include "pcdp/fusion/consistency.hpp"
 #include "pcdp/stages/fuse_elevation.hpp"
 #include "pcdp/stages/register.hpp"
@@ -214,18 +215,7 @@ SweepSetting make_sweep_setting(int index) {
   c.passes = 4;
   c.lines_per_pass = std::min(nod_cycle_lines(c), 250);
 
-  SensorParams& p = st.sensor;  // the simulated scanner's true values
-  p.range_min = s.range_min;
-  p.range_max = s.range_max;
-  p.beam_divergence = s.beam_divergence;
-  p.transceiver_separation = s.transceiver_separation;
-  p.transceiver_angle = s.mirror ? TransceiverAngle::kMirror : TransceiverAngle::kFixed;
-  p.transceiver_angle_offset = s.transceiver_angle_offset;
-  p.min_amplitude = s.min_amplitude;
-  p.range_sigma = s.range_sigma;
-  p.range_k = 1.0 / s.range_n;
-  p.range_b = -s.range_c / s.range_n;
-  p.encoder_resolution = s.encoder_resolution;
+  st.sensor = bench::true_sensor(s);  // the simulated scanner's true values
   return st;
 }
 

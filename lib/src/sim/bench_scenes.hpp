@@ -16,6 +16,24 @@ struct Setting {
   SensorParams sensor;  ///< what the pipeline is told about the sensor
 };
 
+/// The sensor block that tells the pipeline a simulated scanner's true values (range
+/// calibration inverted: the scanner reads n r + c, the pipeline corrects with k = 1 / n, b = -c / n).
+inline SensorParams true_sensor(const sim::Scanner& s) {
+  SensorParams p;
+  p.range_min = s.range_min;
+  p.range_max = s.range_max;
+  p.beam_divergence = s.beam_divergence;
+  p.transceiver_separation = s.transceiver_separation;
+  p.transceiver_angle = s.mirror ? TransceiverAngle::kMirror : TransceiverAngle::kFixed;
+  p.transceiver_angle_offset = s.transceiver_angle_offset;
+  p.min_amplitude = s.min_amplitude;
+  p.range_sigma = s.range_sigma;
+  p.range_k = 1.0 / s.range_n;
+  p.range_b = -s.range_c / s.range_n;
+  p.encoder_resolution = s.encoder_resolution;
+  return p;
+}
+
 /// Setting "A": the sample's sensor (fixed transceiver angle, 8 cm separation, 8 mrad).
 /// Setting "B": a mirror scanner (theta = bearing), 5 cm separation, 5 mrad, 181 beams over 180 deg.
 inline Setting make_setting(char which, std::uint64_t seed) {
@@ -79,19 +97,7 @@ inline Setting make_setting(char which, std::uint64_t seed) {
   c.t0 = 1000.0;
   c.seed = seed;
 
-  Setting out{std::string(1, which), c, {}};
-  SensorParams& p = out.sensor;
-  p.range_min = 0.1;
-  p.range_max = 30.0;
-  p.beam_divergence = s.beam_divergence;
-  p.transceiver_separation = s.transceiver_separation;
-  p.transceiver_angle = s.mirror ? TransceiverAngle::kMirror : TransceiverAngle::kFixed;
-  p.min_amplitude = s.min_amplitude;
-  p.range_sigma = s.range_sigma;
-  p.range_k = 1.0 / s.range_n;
-  p.range_b = -s.range_c / s.range_n;
-  p.encoder_resolution = s.encoder_resolution;
-  return out;
+  return {std::string(1, which), c, true_sensor(s)};
 }
 
 }  // namespace pcdp::bench

@@ -2,7 +2,7 @@
 // vertical edge: the in-line neighbours differ), along the lines (a horizontal edge: only the
 // neighbours across lines differ) and oblique (a turned box's top edge). The simulator's truth
 // says which returns are mixed pixels (footprint on two objects, range 4 cm off both). The bars
-// are today's measured recall (in the comments) and false rejections with a margin (docs/mixed_pixels.md): a change
+// are the measured recall (in the comments) and false rejections with a margin (docs/mixed_pixels.md): a change
 // that loses recall on one direction fails here before it shows in the sweep.
 #include <gtest/gtest.h>
 
@@ -15,6 +15,7 @@
 #include "pcdp/stages/register.hpp"
 #include "pcdp/stages/reject_mixed_pixels.hpp"
 #include "pcdp/stages/reject_occlusion.hpp"
+#include "sim/bench_scenes.hpp"
 
 using namespace pcdp;
 
@@ -48,17 +49,7 @@ EdgeResult run_edge(const sim::Box& front, double divergence) {
   const sim::SimResult r = sim::simulate(c);
   const PoseTrack poses(r.poses);
   const Eigen::Isometry3d T_V_N = make_transform(c.mount_translation, c.mount_rpy, c.rpy_order);
-  SensorParams s;
-  s.beam_divergence = c.scanner.beam_divergence;
-  s.transceiver_separation = c.scanner.transceiver_separation;
-  s.transceiver_angle = c.scanner.mirror ? TransceiverAngle::kMirror : TransceiverAngle::kFixed;
-  s.transceiver_angle_offset = c.scanner.transceiver_angle_offset;
-  s.min_amplitude = c.scanner.min_amplitude;
-  s.range_sigma = c.scanner.range_sigma;
-  s.range_k = 1.0 / c.scanner.range_n;
-  s.range_b = -c.scanner.range_c / c.scanner.range_n;
-  s.encoder_resolution = c.scanner.encoder_resolution;
-  s.range_max = c.scanner.range_max;
+  const SensorParams s = bench::true_sensor(c.scanner);
   EdgeResult e;
   for (const auto& sp : r.passes) {
     Pass p = sp.pass;
@@ -97,7 +88,7 @@ void check_edge(const char* what, const sim::Box& front, double recall_4mrad, do
 }
 }  // namespace
 
-// Measured today (recall at 4 / 12 mrad): across 1.000 / 0.72, along 1.000 / 0.57 (the weakest
+// Measured (recall at 4 / 12 mrad): across 1.000 / 0.72, along 1.000 / 0.57 (the weakest
 // direction, docs/mixed_pixels.md), oblique 0.91 / 0.94.
 TEST(MixedPixelEdges, EdgeAcrossTheLines) {
   // A tall narrow pillar: its two vertical sides cut every line.
