@@ -394,8 +394,7 @@ bool is_mixed(char edge, char other_direction) {
 namespace {
 /// One round of the tests over the returns still kept; labels what it finds.
 std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor, const char* focus) {
-  const std::size_t n = pass.size();
-  if (pass.range_cal.size() != n) throw std::logic_error("reject_mixed_pixels needs a registered pass");
+  const std::size_t n = pass.size();  // registered: checked by reject_mixed_pixels
   std::vector<char> usable(n), mixed(n, 0);
   for (std::size_t i = 0; i < n; ++i) usable[i] = pass.is_kept(i) && std::isfinite(pass.x[i]);
   ReturnsView v{n, pass.x.data(), pass.y.data(), pass.z.data(), pass.ox.data(), pass.oy.data(), pass.oz.data(),
@@ -493,25 +492,22 @@ int extra_rounds(const Pass& pass, const SensorParams& sensor) {
 
 std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor) {
   if (pass.range_cal.size() != pass.size()) throw std::logic_error("reject_mixed_pixels needs a registered pass");
+  const int rounds = extra_rounds(pass, sensor);
+  if (rounds == 0) return mark_round(pass, p, sensor, nullptr);
   std::vector<char> before(pass.size()), last(pass.size());
   for (std::size_t i = 0; i < pass.size(); ++i) before[i] = pass.label[i] == Label::kMixedPixel;
   std::size_t count = mark_round(pass, p, sensor, nullptr);
-  const int rounds = extra_rounds(pass, sensor);
   // Where each return sits in its line, and the lines' width if they are all alike (organized:
   // the same beam on the next line is `width` returns on).
-  std::vector<std::size_t> column;
-  std::size_t width = 0;
-  if (rounds > 0) {
-    column.resize(pass.size());
-    width = pass.line_begin[1] - pass.line_begin[0];
-    for (std::size_t k = 0; k < pass.line_count(); ++k) {
-      if (pass.line_begin[k + 1] - pass.line_begin[k] != width) width = 0;
-      for (std::size_t i = pass.line_begin[k]; i < pass.line_begin[k + 1]; ++i) column[i] = i - pass.line_begin[k];
-    }
+  std::vector<std::size_t> column(pass.size());
+  std::size_t width = pass.line_begin[1] - pass.line_begin[0];  // rounds > 0: a line has 3 returns
+  for (std::size_t k = 0; k < pass.line_count(); ++k) {
+    if (pass.line_begin[k + 1] - pass.line_begin[k] != width) width = 0;
+    for (std::size_t i = pass.line_begin[k]; i < pass.line_begin[k + 1]; ++i) column[i] = i - pass.line_begin[k];
   }
-  std::vector<char> focus(rounds > 0 ? pass.size() : 0);
+  std::vector<char> focus(pass.size());
   // The later rounds look at most kRoundWindow returns each way for a run's sides (a run's
-  // sides are next to it), so each adds kRoundWindow + 1 lines to the stage's reach. No spikes:
+  // sides are next to it), so each adds kRoundWindow lines to the stage's reach. No spikes:
   // a run is an edge's.
   MixedPixelParams later = p;
   later.spikes = false;
