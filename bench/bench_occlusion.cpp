@@ -4,13 +4,15 @@
 //
 // Scoring: positives are the truth `occlusion` false ranges that reach the filter (kept by
 // `register`). A method's false positives are truth-valid returns it rejects; rejecting other bad
-// returns (low-amplitude false ranges, mixed pixels) counts neither way.
+// returns (low-amplitude false ranges, mixed pixels) counts neither way. A second scoring counts
+// every false range, occlusion and low-amplitude, as a positive (each method at its best F1 again).
 #include <pcl/filters/statistical_outlier_removal.h>
 #include <pcl/point_types.h>
 
 #include <cstdio>
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "sim/bench_scenes.hpp"
@@ -69,22 +71,34 @@ int main(int argc, char** argv) {
                 st.sim.scanner.transceiver_separation * 1000, st.sim.scanner.beam_divergence * 1000, seeds, n);
     bench::print_header();
 
-    std::vector<Label> truth(n);
-    for (std::size_t i = 0; i < n; ++i) truth[i] = recs[i].truth;
-    const auto score = [&](const std::vector<char>& rej, std::string m, std::string prm) {
-      return bench::score(truth, rej, Label::kOcclusion, std::move(m), std::move(prm));
+    // Two scorings on the same rejections: (1) the occlusion false ranges alone; (2) every false
+    // range, occlusion and low-amplitude alike (the stage rejects both; a planner cares about both).
+    std::vector<Label> truth(n), any_false(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      truth[i] = recs[i].truth;
+      any_false[i] = truth[i] == Label::kLowAmplitude ? Label::kOcclusion : truth[i];
+    }
+    struct Best {
+      Score occl, any;
+      void offer(const Score& o, const Score& a) {
+        if (o.f1 > occl.f1) occl = o;
+        if (a.f1 > any.f1) any = a;
+      }
+    };
+    const auto score_both = [&](const std::vector<char>& rej, const std::string& m, const std::string& prm) {
+      return std::make_pair(bench::score(truth, rej, Label::kOcclusion, m, prm), bench::score(any_false, rej, Label::kOcclusion, m, prm));
     };
     std::vector<char> rej(n);
     for (std::size_t i = 0; i < n; ++i) rej[i] = recs[i].ours;
-    const Score ours = score(rej, "reject_occlusion (defaults)", "-");
+    const auto [ours, ours_any] = score_both(rej, "reject_occlusion (defaults)", "-");
 
-    Score best_thr;
+    Best thr;
     for (int t = 1; t <= 80; ++t) {
       for (std::size_t i = 0; i < n; ++i) rej[i] = recs[i].amplitude < static_cast<float>(t);
-      const Score s = score(rej, "amplitude threshold", "amplitude < " + std::to_string(t));
-      if (s.f1 > best_thr.f1) best_thr = s;
+      const auto [o, a] = score_both(rej, "amplitude threshold", "amplitude < " + std::to_string(t));
+      thr.offer(o, a);
     }
-    Score best_sor;
+    Best sor_best;
     for (int k : {2, 4, 8, 16, 32, 50}) {
       for (double m : {0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 10.0}) {
         std::fill(rej.begin(), rej.end(), 0);
@@ -99,19 +113,26 @@ int main(int argc, char** argv) {
         }
         char buf[64];
         std::snprintf(buf, sizeof buf, "k = %d, std = %.2f", k, m);
-        const Score s = score(rej, "PCL StatisticalOutlierRemoval", buf);
-        if (s.f1 > best_sor.f1) best_sor = s;
+        const auto [o, a] = score_both(rej, "PCL StatisticalOutlierRemoval", buf);
+        sor_best.offer(o, a);
       }
     }
+    std::printf("  (1) occlusion false ranges\n");
     bench::print(ours);
-    bench::print(best_thr);
-    bench::print(best_sor);
-    const bool met = ours.recall >= 0.95 && ours.valid_rejected <= 0.005 && ours.f1 > best_thr.f1 && ours.f1 > best_sor.f1;
+    bench::print(thr.occl);
+    bench::print(sor_best.occl);
+    std::printf("  (2) every false range, occlusion and low-amplitude\n");
+    bench::print(ours_any);
+    bench::print(thr.any);
+    bench::print(sor_best.any);
+    const bool met = ours.recall >= 0.95 && ours.valid_rejected <= 0.005 && ours.f1 > thr.occl.f1 && ours.f1 > sor_best.occl.f1;
+    const bool met_any = ours_any.f1 > thr.any.f1 && ours_any.f1 > sor_best.any.f1;
     all_met = all_met && met;
     std::printf("  low-amplitude false ranges rejected by reject_occlusion: %llu/%llu (%.3f)\n",
                 static_cast<unsigned long long>(low_rejected), static_cast<unsigned long long>(low_truth),
                 low_truth ? static_cast<double>(low_rejected) / static_cast<double>(low_truth) : 0.0);
-    std::printf("  acceptance (recall >= 0.95, valid rejected <= 0.5 %%, best F1): %s\n", met ? "met" : "NOT met");
+    std::printf("  acceptance, occlusion false ranges (recall >= 0.95, valid rejected <= 0.5 %%, best F1): %s\n", met ? "met" : "NOT met");
+    std::printf("  every false range: best F1 %s\n", met_any ? "yes" : "no");
   }
   return all_met ? 0 : 1;
 }

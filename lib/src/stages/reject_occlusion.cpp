@@ -43,7 +43,10 @@ struct Side {
 };
 
 struct Judgement {
-  bool consistent = false;
+  /// Sides (along: left, right; across: before, after) whose kept neighbours the range fits; a
+  /// smooth fit through both sides of a sequence counts twice.
+  int support = 0;
+  int sides = 0;  ///< sides with a kept neighbour within the window
   bool dipping = false;
   double repair_range = 0;
 };
@@ -66,17 +69,18 @@ class Sequencer {
       // Either neighbour alone, or their extrapolation: one false neighbour does not spoil a side.
       return ok(sd.predicted) || ok(sd.range) || (sd.count >= 2 && ok(sd.second));
     };
-    // Consistency: against any kept neighbour (weak but valid surfaces have weak neighbours);
+    // Consistency: against kept neighbours not surely below the threshold (weak but valid surfaces
+    // have weak neighbours);
     // the edge model: against stable neighbours only (their amplitudes are P1 and P2).
     const Side kl = side(seq, pos, -1, kept_), kr = side(seq, pos, +1, kept_);
     const double tol = prm_.range_tolerance + prm_.range_tolerance_ratio * rng;
+    j.sides += static_cast<int>(kl.count > 0) + static_cast<int>(kr.count > 0);
     if (kl.count > 0 && kr.count > 0 && smooth_fit(kl, kr, tol, rng)) {
-      j.consistent = true;
-    } else if (fits(kl) || fits(kr)) {
+      j.support += 2;
+    } else {
       // At a discontinuity a valid return lies on one of the two surfaces; a false range is
-      // arbitrary and agrees with one by chance only (a few per cent), and the amplitude test
-      // catches most false ranges in a dip anyway.
-      j.consistent = true;
+      // arbitrary and agrees with one side by chance only (a few per cent).
+      j.support += static_cast<int>(fits(kl)) + static_cast<int>(fits(kr));
     }
     const Side l = side(seq, pos, -1, stable_), r = side(seq, pos, +1, stable_);
     if (l.count == 0 || r.count == 0) return;
@@ -172,13 +176,12 @@ class Sequencer {
     sd.predicted = r[0];
     if (sd.count >= 2) {
       sd.second = r[1];
-      // Extrapolate the two nearest linearly to the suspect's position, if they are one surface
-      // (two false ranges would predict an arbitrary value).
-      const double step = std::fabs(r[1] - r[0]) / (at[1] - at[0]);
-      if (step <= std::max(prm_.jump_min, prm_.jump_ratio * std::min(r[0], r[1]))) {
-        const double slope = (r[1] - r[0]) / (at[1] - at[0]);
-        sd.predicted = r[0] - slope * at[0];
-      }
+      // Extrapolate the two nearest linearly to the suspect's position. Across lines on grazing
+      // ground the step between lines reaches metres, so no step limit applies: from two false
+      // ranges, or across an edge, the prediction is one arbitrary value more, which a false range
+      // fits by chance as rarely as a neighbour's own range.
+      const double slope = (r[1] - r[0]) / (at[1] - at[0]);
+      sd.predicted = r[0] - slope * at[0];
     }
     return sd;
   }
@@ -207,7 +210,8 @@ OcclusionCounts reject_occlusion(Pass& p, const OcclusionParams& prm, const Sens
   std::vector<char> suspect(n, 0), stable(n, 0), kept(n, 0);
   for (std::size_t i = 0; i < n; ++i) {
     if (!p.is_kept(i)) continue;
-    kept[i] = 1;
+    // A neighbour surely below the threshold is itself a false range or no evidence of a surface.
+    kept[i] = !(p.amplitude[i] < a0 - prm.amplitude_margin);
     suspect[i] = p.amplitude[i] < a0 + prm.amplitude_margin;
     stable[i] = !suspect[i];
     counts.suspects += suspect[i];
@@ -243,7 +247,12 @@ OcclusionCounts reject_occlusion(Pass& p, const OcclusionParams& prm, const Sens
     const Judgement& j = judge[i];
     const double a = p.amplitude[i];
     const bool surely_weak = a < a0 - prm.amplitude_margin;
-    if (j.dipping && (surely_weak || !j.consistent)) {
+    // At an edge a valid return lies on one of the two surfaces: one side that fits is enough.
+    // Away from a dipping edge, a return reported below the threshold is more likely a false range
+    // than not: one side fitting by chance (a few per cent) is not enough, two independent sides
+    // must fit (the chance squared).
+    const int needed = a < a0 && j.sides >= 2 ? 2 : 1;
+    if (j.dipping && (surely_weak || j.support == 0)) {
       counts.dipping_edges += 1;
       if (prm.repair) {
         const double old = p.range_cal[i];
@@ -260,7 +269,7 @@ OcclusionCounts reject_occlusion(Pass& p, const OcclusionParams& prm, const Sens
         p.label[i] = Label::kOcclusion;
         ++counts.occlusion;
       }
-    } else if (prm.low_amplitude && (surely_weak || !j.consistent)) {
+    } else if (prm.low_amplitude && (surely_weak || j.support < needed)) {
       p.label[i] = Label::kLowAmplitude;
       ++counts.low_amplitude;
     }

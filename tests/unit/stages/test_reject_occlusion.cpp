@@ -95,6 +95,31 @@ TEST(RejectOcclusion, NoisyNearThresholdValidReturnsAreKept) {
   EXPECT_EQ(p.kept(), p.size());
 }
 
+TEST(RejectOcclusion, BelowTheThresholdOneFittingSideIsNotEnough) {
+  // A step from 6 m to 12 m on a coaxial sensor (no dip). The suspect between the sides fits the
+  // near side only, as a valid return at an edge would, and as a false range does by chance.
+  std::vector<float> r = {6.0f, 6.0f, 6.0f, 6.0f, 6.02f, 12.0f, 12.0f, 12.0f, 12.0f};
+  SensorParams s;
+  s.min_amplitude = 18;
+  s.transceiver_separation = 0.0;
+  const auto label_at = [&](float amplitude) {
+    std::vector<float> a(r.size(), 60.0f);
+    a[4] = amplitude;
+    Pass p = test::line_pass(r, a);
+    reject_occlusion(p, OcclusionParams{}, s);
+    return p.label[4];
+  };
+  // Reported at or above the threshold (noise put it near): one side is enough.
+  EXPECT_EQ(label_at(18.0f), Label::kKept);
+  EXPECT_EQ(label_at(23.0f), Label::kKept);
+  // Reported below it, more likely false than not: two sides must fit, and only one does.
+  EXPECT_EQ(label_at(17.0f), Label::kLowAmplitude);
+  EXPECT_EQ(label_at(13.0f), Label::kLowAmplitude);
+  // The same weak return inside the smooth near surface fits both sides and stays.
+  r[5] = 6.0f;
+  EXPECT_EQ(label_at(13.0f), Label::kKept);
+}
+
 TEST(RejectOcclusion, ADipAtAnEdgeIsOcclusionAndAWeakReturnElsewhereIsLowAmplitude) {
   // Near surface at 5 m (bright), a dip with a false range, far surface at 12 m; then, on the far
   // surface, an isolated weak return whose range is arbitrary.

@@ -10,15 +10,20 @@
 // transceiver angle (fixed: theta = offset; mirror: theta = bearing + offset; cos(theta) along the
 // line, sin(theta) across lines). Then:
 //  - dip predicted below min_amplitude, and the suspect's amplitude is surely below the
-//    threshold (< min - margin) or its range fits neither side: `occlusion` (or, with `repair`,
+//    threshold (< min - margin) or its range fits no side: `occlusion` (or, with `repair`,
 //    its range is replaced by the nearer stable neighbour's and it is flagged repaired);
-//  - otherwise, amplitude surely below the threshold, or a suspect whose range fits no
-//    neighbour (a false range is arbitrary): `low_amplitude`;
+//  - otherwise, amplitude surely below the threshold, or a suspect whose range fits fewer sides
+//    than it needs (below): `low_amplitude`;
 //  - otherwise kept (a valid return whose amplitude noise put it near the threshold).
-// "Fits" means within range_tolerance + range_tolerance_ratio * range of the nearest kept
-// neighbour, or of the linear extrapolation of the two nearest, on every side present, along or
-// across lines. Kept neighbours of any amplitude count here (a weak surface has weak neighbours); the
-// edge model uses only stable neighbours, whose amplitudes stand for P1 and P2.
+// "Fits" means within range_tolerance + range_tolerance_ratio * range of the nearest or second
+// nearest neighbour on a side, or of their linear extrapolation; the sides are left and right along
+// the line and before and after across lines. Neighbours are the kept returns not surely below the
+// threshold (a weak surface has weak neighbours). A suspect reported at or above min_amplitude, or
+// at a predicted dip, needs one side that fits (at an edge a valid return lies on one surface); one
+// reported below it, more likely false than not, needs two where two sides have neighbours: a
+// false range is arbitrary and fits any one side by chance only (about 2 * tolerance /
+// (range_max - range_min) per value, a few per cent), two with about that chance squared. The edge
+// model uses only stable neighbours, whose amplitudes stand for P1 and P2.
 #pragma once
 
 #include "pcdp/pipeline/config.hpp"
