@@ -106,7 +106,9 @@ bool breaks_from_side(const ReturnsView& v, std::size_t i, const Nb& own, const 
                       const MixedPixelParams& p) {
   if (own.count < 2 || own.at[1] != own.at[0] + 1) return false;
   const double ri = v.range[i];
-  if (std::fabs(ri - own.r[0]) <= jump_at(p, own.r[0])) return false;
+  // Beside a void the far surface's depth is unknown: any step from the own surface larger than the
+  // tolerance (which holds 3 sigma of range noise) may be a mixture with it; the trend test decides.
+  if (std::fabs(ri - own.r[0]) <= tol) return false;
   const double step = own.r[1] - own.r[0];
   double trend = own.r[0] - step * own.at[0], allow = 0.5 * std::fabs(step) * own.at[0];
   if (own.at[0] == 1 && own.has3 && own.at3 == 3) {

@@ -137,6 +137,28 @@ TEST(RejectMixedPixels, BesideAVoidAReturnThatBreaksFromItsOneSurfaceIsAMixture)
   EXPECT_EQ(p.label[8], Label::kKept);
 }
 
+TEST(RejectMixedPixels, BesideAVoidAFewCentimetresPastTheSurfaceIsEnough) {
+  // A wall 8 m ahead, then a void (a background too dark to return alone). A footprint mostly on
+  // the wall is pulled only share x gap past it: a few centimetres, less than an edge jump
+  // (max(jump_min, jump_ratio * r) = 0.12 m here). The far depth is unknown, so the tolerance
+  // (0.01 + 0.002 r + 3 sigma = 0.042 m at 8 m) is the bar.
+  const auto last = [](float past) {
+    std::vector<float> r(12, 8.0f);
+    r.push_back(8.0f + past);
+    for (int k = 0; k < 5; ++k) r.push_back(0.0f);  // no return
+    Pass p = test::line_pass(r, std::vector<float>(r.size(), 100.0f));
+    reject_mixed_pixels(p, MixedPixelParams{}, coaxial_sensor());
+    return p.label[12];
+  };
+  EXPECT_EQ(last(0.10f), Label::kMixedPixel);
+  EXPECT_EQ(last(0.07f), Label::kMixedPixel);
+  // The step must still run along the beam within max_angle (test 3's geometry): beams 0.08 m
+  // apart at 8 m make a 0.05 m step a surface turned 58 degrees from the beam, not a veil.
+  EXPECT_EQ(last(0.05f), Label::kKept);
+  EXPECT_EQ(last(0.02f), Label::kKept);  // within the range noise of the wall
+  EXPECT_EQ(last(0.0f), Label::kKept);
+}
+
 TEST(RejectMixedPixels, AtACornerTheVeilIsFlaggedAndAFaceSeenEdgeOnIsNot) {
   // Along each line: a wall at 10 m, the return at the corner, one return on a box's side face
   // seen edge-on (9.2 m) and then the box's front (8.6 m). The side's next step is itself an edge,

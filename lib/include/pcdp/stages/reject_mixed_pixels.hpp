@@ -29,7 +29,8 @@
 // rejected one: the other surface was too weak to return on its own), a return is a mixed pixel
 // if it breaks from the trend of the surface on its other side (quadratic where that side is
 // three adjacent returns of one smooth surface, allowing a quarter step; else linear, half a step)
-// by more than the tolerance and the edge jump, does not continue the surface beyond the void,
+// by more than the tolerance (the far surface's depth is unknown, so no edge jump is asked),
+// does not continue the surface beyond the void,
 // and has the beam geometry of 3. The end of a scan is not a void (ReturnsView::ends_are_voids).
 // Spikes (`spikes`, organized passes with across_lines): a run of 1 to spike_width returns, each
 // nearer by more than an edge jump than both returns flanking the run along the line, which agree
