@@ -53,9 +53,9 @@ struct Judgement {
 
 class Sequencer {
  public:
-  Sequencer(Pass& p, const OcclusionParams& prm, const SensorParams& s, const std::vector<char>& kept,
+  Sequencer(Pass& p, const OcclusionParams& prm, const SensorParams& s, const std::vector<char>& evidence,
             const std::vector<char>& stable)
-      : p_(p), prm_(prm), s_(s), kept_(kept), stable_(stable) {}
+      : p_(p), prm_(prm), s_(s), evidence_(evidence), stable_(stable) {}
 
   /// Judges position `pos` of the sequence `seq` (indices into the pass).
   void judge(const std::vector<std::size_t>& seq, std::size_t pos, bool along, Judgement& j) const {
@@ -72,7 +72,7 @@ class Sequencer {
     // Consistency: against kept neighbours not surely below the threshold (weak but valid surfaces
     // have weak neighbours);
     // the edge model: against stable neighbours only (their amplitudes are P1 and P2).
-    const Side kl = side(seq, pos, -1, kept_), kr = side(seq, pos, +1, kept_);
+    const Side kl = side(seq, pos, -1, evidence_), kr = side(seq, pos, +1, evidence_);
     const double tol = prm_.range_tolerance + prm_.range_tolerance_ratio * rng;
     j.sides += static_cast<int>(kl.count > 0) + static_cast<int>(kr.count > 0);
     if (kl.count > 0 && kr.count > 0 && smooth_fit(kl, kr, tol, rng)) {
@@ -195,7 +195,7 @@ class Sequencer {
   Pass& p_;
   const OcclusionParams& prm_;
   const SensorParams& s_;
-  const std::vector<char>& kept_;
+  const std::vector<char>& evidence_;  ///< kept and not surely below the threshold
   const std::vector<char>& stable_;
 };
 
@@ -207,11 +207,11 @@ OcclusionCounts reject_occlusion(Pass& p, const OcclusionParams& prm, const Sens
   if (p.range_cal.size() != n) throw std::logic_error("reject_occlusion needs a registered pass");
   if (p.flags.size() != n) p.flags.assign(n, 0);
   const double a0 = s.min_amplitude;
-  std::vector<char> suspect(n, 0), stable(n, 0), kept(n, 0);
+  std::vector<char> suspect(n, 0), stable(n, 0), evidence(n, 0);
   for (std::size_t i = 0; i < n; ++i) {
     if (!p.is_kept(i)) continue;
     // A neighbour surely below the threshold is itself a false range or no evidence of a surface.
-    kept[i] = !(p.amplitude[i] < a0 - prm.amplitude_margin);
+    evidence[i] = !(p.amplitude[i] < a0 - prm.amplitude_margin);
     suspect[i] = p.amplitude[i] < a0 + prm.amplitude_margin;
     stable[i] = !suspect[i];
     counts.suspects += suspect[i];
@@ -219,7 +219,7 @@ OcclusionCounts reject_occlusion(Pass& p, const OcclusionParams& prm, const Sens
   if (counts.suspects == 0) return counts;
 
   std::vector<Judgement> judge(n);
-  const Sequencer seqr(p, prm, s, kept, stable);
+  const Sequencer seqr(p, prm, s, evidence, stable);
   std::vector<std::size_t> seq;
   // Along each scan line.
   for (std::size_t k = 0; k < p.line_count(); ++k) {
@@ -251,7 +251,7 @@ OcclusionCounts reject_occlusion(Pass& p, const OcclusionParams& prm, const Sens
     // Away from a dipping edge, a return reported below the threshold is more likely a false range
     // than not: one side fitting by chance (a few per cent) is not enough, two independent sides
     // must fit (the chance squared).
-    const int needed = a < a0 && j.sides >= 2 ? 2 : 1;
+    const int needed = !j.dipping && a < a0 && j.sides >= 2 ? 2 : 1;
     if (j.dipping && (surely_weak || j.support == 0)) {
       counts.dipping_edges += 1;
       if (prm.repair) {

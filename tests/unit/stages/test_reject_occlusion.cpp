@@ -95,6 +95,19 @@ TEST(RejectOcclusion, NoisyNearThresholdValidReturnsAreKept) {
   EXPECT_EQ(p.kept(), p.size());
 }
 
+/// Liu et al. Fig. 13's sensor: fixed transceiver angle, 2.9 cm separation, 3 mrad. The near side
+/// of the test lines is at lower bearing; with theta = 0 the receiver (+bearing side) would be on
+/// the far side (no dip); theta = pi puts it on the near side.
+static SensorParams fig13_sensor() {
+  SensorParams s;
+  s.min_amplitude = 18;
+  s.beam_divergence = 0.003;
+  s.transceiver_separation = 0.029;
+  s.transceiver_angle = TransceiverAngle::kFixed;
+  s.transceiver_angle_offset = 3.14159265358979;
+  return s;
+}
+
 TEST(RejectOcclusion, BelowTheThresholdOneFittingSideIsNotEnough) {
   // A step from 6 m to 12 m on a coaxial sensor (no dip). The suspect between the sides fits the
   // near side only, as a valid return at an edge would, and as a false range does by chance.
@@ -115,9 +128,28 @@ TEST(RejectOcclusion, BelowTheThresholdOneFittingSideIsNotEnough) {
   // Reported below it, more likely false than not: two sides must fit, and only one does.
   EXPECT_EQ(label_at(17.0f), Label::kLowAmplitude);
   EXPECT_EQ(label_at(13.0f), Label::kLowAmplitude);
-  // The same weak return inside the smooth near surface fits both sides and stays.
-  r[5] = 6.0f;
+  // The same weak return inside a smooth surface: both sides lie on one line through it.
+  for (std::size_t k = 5; k < r.size(); ++k) r[k] = 6.0f;
   EXPECT_EQ(label_at(13.0f), Label::kKept);
+  // One return of the near surface on the right before the step: the nearest fits, both sides do.
+  for (std::size_t k = 6; k < r.size(); ++k) r[k] = 12.0f;
+  EXPECT_EQ(label_at(13.0f), Label::kKept);
+}
+
+TEST(RejectOcclusion, AtAPredictedDipOneFittingSideIsEnough) {
+  // Near surface at 5 m, far at 12 m, the receiver on the near side (Liu et al. Fig. 13): a dip is
+  // predicted. A return reported just below the threshold but on the near surface is a valid
+  // return at the edge (it lies on one of the two surfaces); an arbitrary range there is not.
+  std::vector<float> r = {5.0f, 5.0f, 5.0f, 5.0f, 5.0f, 12.0f, 12.0f, 12.0f, 12.0f, 12.0f};
+  std::vector<float> a = {115, 115, 115, 115, 17, 50, 50, 50, 50, 50};
+  const SensorParams s = fig13_sensor();
+  Pass p = test::line_pass(r, a);
+  reject_occlusion(p, OcclusionParams{}, s);
+  EXPECT_EQ(p.label[4], Label::kKept);
+  r[4] = 23.7f;  // fits neither side
+  Pass q = test::line_pass(r, a);
+  reject_occlusion(q, OcclusionParams{}, s);
+  EXPECT_EQ(q.label[4], Label::kOcclusion);
 }
 
 TEST(RejectOcclusion, ADipAtAnEdgeIsOcclusionAndAWeakReturnElsewhereIsLowAmplitude) {
@@ -125,14 +157,7 @@ TEST(RejectOcclusion, ADipAtAnEdgeIsOcclusionAndAWeakReturnElsewhereIsLowAmplitu
   // surface, an isolated weak return whose range is arbitrary.
   std::vector<float> r = {5.0f, 5.0f, 5.0f, 5.0f, 23.7f, 12.0f, 12.0f, 12.0f, 12.0f, 12.0f, 12.0f, 3.3f, 12.0f, 12.0f, 12.0f};
   std::vector<float> a = {115, 115, 115, 115, 4, 50, 50, 50, 50, 50, 50, 10, 50, 50, 50};
-  SensorParams s;
-  s.min_amplitude = 18;
-  s.beam_divergence = 0.003;
-  s.transceiver_separation = 0.029;
-  s.transceiver_angle = TransceiverAngle::kFixed;
-  // The near side is at lower bearing; with theta = 0 the receiver (+bearing side) is on the far
-  // side: no dip. theta = pi puts it on the near side (Liu et al. Fig. 13's configuration).
-  s.transceiver_angle_offset = 3.14159265358979;
+  SensorParams s = fig13_sensor();
   Pass p = test::line_pass(r, a);
   reject_occlusion(p, OcclusionParams{}, s);
   EXPECT_EQ(p.label[4], Label::kOcclusion);
