@@ -504,7 +504,7 @@ void json_row(FILE* f, const Result& r, const char* name) {
 }  // namespace
 
 /// A --require value: a non-negative number, or exit 2 naming it (a typo must not disable a check).
-double number(const char* text) {
+static double number(const char* text) {
   char* end = nullptr;
   const double v = std::strtod(text, &end);
   if (end == text || *end != '\0' || !(v >= 0)) {

@@ -21,7 +21,7 @@ const Options<MixedPixelParams>& reject_mixed_pixels_options() {
       .add("across_lines", &P::across_lines, "also look across scan lines (same beam)")
       .add("max_span", &P::max_span, bounds(2, 100), "returns", "the two sides' nearest neighbours may be at most this many steps apart")
       .add("amplitude_saturation", &P::amplitude_saturation, bounds(0, 1e9), "", "amplitudes at or above this are clipped: the mixing test is skipped")
-      .add("one_sided", &P::one_sided, "beside a void, flag returns that break sharply from their one visible surface")
+      .add("one_sided", &P::one_sided, "beside a void, flag returns that break from the trend of their one visible surface by more than the tolerance")
       .add("spikes", &P::spikes, "flag a run of returns a few beams wide in front of the surface on both sides along its line whose range changes across lines (a mixture with a thin object)")
       .add("spike_width", &P::spike_width, bounds(1, 16), "returns", "widest run along a line the spike test takes for a thin object (or a mixture with one)")
       .add("spike_dim_ratio", &P::spike_dim_ratio, bounds(0, 1), "", "a spike that keeps its range across lines is still a mixture if dimmer than this times its object's brightest return there, and brighter than the surface behind (0: off)")

@@ -43,10 +43,10 @@ struct Side {
 };
 
 struct Judgement {
-  /// Sides (along: left, right; across: before, after) whose kept neighbours the range fits; a
-  /// smooth fit through both sides of a sequence counts twice.
+  /// Sides (along: left, right; across: before, after) whose neighbours (kept returns not surely
+  /// weak) the range fits; a smooth fit through both sides of a sequence counts twice.
   int support = 0;
-  int sides = 0;  ///< sides with a kept neighbour within the window
+  int sides = 0;  ///< sides with such a neighbour within the window
   bool dipping = false;
   double repair_range = 0;
 };
@@ -207,11 +207,13 @@ OcclusionCounts reject_occlusion(Pass& p, const OcclusionParams& prm, const Sens
   if (p.range_cal.size() != n) throw std::logic_error("reject_occlusion needs a registered pass");
   if (p.flags.size() != n) p.flags.assign(n, 0);
   const double a0 = s.min_amplitude;
+  // Surely below the threshold, noise included (false for an unmeasured, NaN, amplitude).
+  const auto surely_weak = [&](double a) { return a < a0 - prm.amplitude_margin; };
   std::vector<char> suspect(n, 0), stable(n, 0), evidence(n, 0);
   for (std::size_t i = 0; i < n; ++i) {
     if (!p.is_kept(i)) continue;
     // A neighbour surely below the threshold is itself a false range or no evidence of a surface.
-    evidence[i] = !(p.amplitude[i] < a0 - prm.amplitude_margin);
+    evidence[i] = !surely_weak(p.amplitude[i]);
     suspect[i] = p.amplitude[i] < a0 + prm.amplitude_margin;
     stable[i] = !suspect[i];
     counts.suspects += suspect[i];
@@ -246,13 +248,13 @@ OcclusionCounts reject_occlusion(Pass& p, const OcclusionParams& prm, const Sens
     if (!suspect[i]) continue;
     const Judgement& j = judge[i];
     const double a = p.amplitude[i];
-    const bool surely_weak = a < a0 - prm.amplitude_margin;
     // At an edge a valid return lies on one of the two surfaces: one side that fits is enough.
     // Away from a dipping edge, a return reported below the threshold is more likely a false range
     // than not: one side fitting by chance (a few per cent) is not enough, two independent sides
     // must fit (the chance squared).
     const int needed = !j.dipping && a < a0 && j.sides >= 2 ? 2 : 1;
-    if (j.dipping && (surely_weak || j.support == 0)) {
+    const bool rejected = surely_weak(a) || j.support < needed;
+    if (j.dipping && rejected) {
       counts.dipping_edges += 1;
       if (prm.repair) {
         const double old = p.range_cal[i];
@@ -269,7 +271,7 @@ OcclusionCounts reject_occlusion(Pass& p, const OcclusionParams& prm, const Sens
         p.label[i] = Label::kOcclusion;
         ++counts.occlusion;
       }
-    } else if (prm.low_amplitude && (surely_weak || j.support < needed)) {
+    } else if (prm.low_amplitude && rejected) {
       p.label[i] = Label::kLowAmplitude;
       ++counts.low_amplitude;
     }
