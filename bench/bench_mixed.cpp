@@ -59,7 +59,7 @@ int main(int argc, char** argv) {
         register_pass(pd.pass, RegisterParams{}, st.sensor, T_V_N, &poses);
         reject_occlusion(pd.pass, OcclusionParams{}, st.sensor);
         Pass q = pd.pass;
-        reject_mixed_pixels(q, MixedPixelParams{}, st.sensor);
+        reject_mixed_pixels(q, MixedPixelParams{}, st.sensor, PoseSigma{});  // as the pipeline: the simulated pose noise
         pd.offset = truth.size();
         pd.cloud.reset(new Cloud);
         pd.relative.reset(new Cloud);

@@ -287,7 +287,7 @@ Result run_setting(const SweepSetting& st) {
     reject_occlusion(p, OcclusionParams{}, st.sensor);
     std::vector<char> reaching(p.size());
     for (std::size_t i = 0; i < p.size(); ++i) reaching[i] = p.is_kept(i);
-    reject_mixed_pixels(p, MixedPixelParams{}, st.sensor);
+    reject_mixed_pixels(p, MixedPixelParams{}, st.sensor, PoseSigma{});
     fuse_pass(grid, p, fep, st.sensor.range_sigma * st.sensor.range_sigma);
     filtered.push_back(p);
     for (std::size_t i = 0; i < p.size(); ++i) {

@@ -7,6 +7,7 @@
 #include "pcdp/core/errors.hpp"
 #include "pcdp/core/pass.hpp"
 #include "pcdp/models/mixing_model.hpp"
+#include "reject_mixed_pixels_detail.hpp"
 
 namespace pcdp {
 
@@ -76,6 +77,52 @@ bool on_plane_of(const ReturnsView& v, std::size_t i, std::size_t a, std::size_t
   return std::fabs(r - pred) <= tol && miss <= tol;  // false for NaN: no prediction
 }
 
+/// The neighbours of return a in the other scan direction (both usable), if the view has one.
+bool cross_neighbours(const ReturnsView& v, std::size_t a, std::size_t& c0, std::size_t& c1) {
+  if (v.cross == 0 || v.width == 0) return false;
+  if (v.cross == 1) {  // neighbouring beams on a's line
+    if (a % v.width == 0 || (a + 1) % v.width == 0) return false;
+    c0 = a - 1;
+    c1 = a + 1;
+  } else {  // the same beam on the lines before and after
+    if (a < v.cross || a + v.cross >= v.n) return false;
+    c0 = a - v.cross;
+    c1 = a + v.cross;
+  }
+  return v.usable[c0] && v.usable[c1];
+}
+
+/// Whether return i lies on the plane of a side's 2-D patch: the side's two nearest returns a, b
+/// and a's two neighbours in the other scan direction, where the four are one plane (each of a's
+/// neighbours within tol, in range, of the plane through a spanned by b - a and c1 - c0). The
+/// plane predicts the range on a plane at any incidence and for any spacing of the lines (a nod
+/// that speeds up or turns), where a trend through returns of one beam bends with the beam's
+/// trace over the surface.
+bool on_patch_of(const ReturnsView& v, std::size_t i, const Nb& nb, double tol, bool pose_noise) {
+  if (nb.count < 2) return false;
+  std::size_t c0 = 0, c1 = 0;
+  const std::size_t a = nb.idx[0], b = nb.idx[1];
+  if (!cross_neighbours(v, a, c0, c1)) return false;
+  const auto P = [&](std::size_t k) { return Eigen::Vector3d(v.x[k], v.y[k], v.z[k]); };
+  const auto O = [&](std::size_t k) { return Eigen::Vector3d(v.ox[k], v.oy[k], v.oz[k]); };
+  const Eigen::Vector3d pa = P(a), u = P(b) - pa, w = P(c1) - P(c0);
+  Eigen::Vector3d nrm = u.cross(w);
+  const double nn = nrm.norm();
+  if (!(nn > 0.2 * u.norm() * w.norm())) return false;  // the two directions nearly parallel
+  nrm /= nn;
+  // Distance from the plane of return k, and the tolerance for it: the range tolerance seen
+  // along the normal (a grazing beam's range noise moves it little off the plane), plus the
+  // noise of two poses where the patch lies on other lines than the return.
+  const auto off = [&](std::size_t k, bool other_line) {
+    const Eigen::Vector3d d = P(k) - O(k);
+    const double r = d.norm(), c = std::fabs(nrm.dot(d)) / r;
+    const double ps = std::sqrt(v.pose_position_sigma * v.pose_position_sigma + r * r * v.pose_rpy_sigma * v.pose_rpy_sigma);
+    return std::fabs(nrm.dot(P(k) - pa)) - (tol * c + (other_line && pose_noise ? 3.0 * std::sqrt(2.0) * ps : 0.0));
+  };
+  if (!(off(c0, v.cross != 1) <= 0) || !(off(c1, v.cross != 1) <= 0)) return false;
+  return off(i, v.cross == 1) <= 0;
+}
+
 double angle_to(const ReturnsView& v, std::size_t i, std::size_t j) {
   const Eigen::Vector3d p(v.x[i], v.y[i], v.z[i]);
   const Eigen::Vector3d b = (p - Eigen::Vector3d(v.ox[i], v.oy[i], v.oz[i])).normalized();
@@ -120,7 +167,13 @@ bool breaks_from_side(const ReturnsView& v, std::size_t i, const Nb& own, const 
     }
   }
   if (std::fabs(ri - trend) <= std::max(tol, allow)) return false;
+  // On its own surface's plane, within the noise of two lines' poses where it is as bright as that
+  // surface: a mixture with a void (a surface too weak to return) loses the void's share of the power.
   if (on_plane_of(v, i, own.idx[0], own.idx[1], tol)) return false;
+  const double a = v.amplitude ? static_cast<double>(v.amplitude[i]) : NAN, a_own = side_amp(v, own, p);
+  const bool as_bright = std::isfinite(a) && std::isfinite(a_own) && a >= a_own * (1 - p.amplitude_ratio) - p.amplitude_slack;
+  if (on_patch_of(v, i, own, tol, as_bright)) return false;
+  if (on_patch_of(v, i, gap, tol, false)) return false;
   if (gap.count >= 2 && gap.at[1] == gap.at[0] + 1 && on_plane_of(v, i, gap.idx[0], gap.idx[1], tol)) return false;
   if (gap.count >= 2 && gap.at[1] == gap.at[0] + 1) {
     const double gstep = gap.r[1] - gap.r[0];
@@ -207,12 +260,12 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
       const double extrap = nb.r[0] - (nb.r[1] - nb.r[0]) / (nb.at[1] - nb.at[0]) * nb.at[0];
       if (std::fabs(ri - extrap) <= tol) return true;
       if (on_plane_of(v, i, nb.idx[0], nb.idx[1], tol)) return true;
-      if (!nb.has3) return false;
+      if (!nb.has3) return on_patch_of(v, i, nb, tol, false);
       // Quadratic through the side's three returns (at -at0, -at1, -at3), evaluated at 0.
       const double x0 = -nb.at[0], x1 = -nb.at[1], x2 = -nb.at3;
       const double quad = nb.r[0] * (x1 * x2) / ((x0 - x1) * (x0 - x2)) + nb.r[1] * (x0 * x2) / ((x1 - x0) * (x1 - x2)) +
                           nb.r3 * (x0 * x1) / ((x2 - x0) * (x2 - x1));
-      return std::fabs(ri - quad) <= tol;
+      return std::fabs(ri - quad) <= tol || on_patch_of(v, i, nb, tol, false);
     };
     if (on_trend(l) || on_trend(r)) continue;
     const double d1 = nr.predicted, d2 = fr.predicted;
@@ -232,12 +285,7 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
   }
 }
 
-namespace {
-/// How the return at `pos` lies between its immediate neighbours in one direction. With only one
-/// immediate neighbour (the other position is a void, or the end of the line or of the sweep),
-/// whether it keeps the range of that neighbour (within an edge jump) or not: one neighbour cannot
-/// say smooth or rough, but it can say the return is not flat there.
-enum Smoothness : char { kUnknown = 0, kSmooth = 1, kRough = 2, kFlat = 3, kOneFlat = 4, kOneChanging = 5 };
+namespace mixed_detail {
 void mark_smooth(const ReturnsView& v, const std::vector<std::size_t>& seq, const MixedPixelParams& p,
                  double range_sigma, std::vector<char>& smooth) {
   for (std::size_t pos = 0; pos < seq.size(); ++pos) {
@@ -372,36 +420,20 @@ void mark_spikes_off_surface(const ReturnsView& v, const std::vector<std::size_t
   }
 }
 
-/// The verdict from one direction's edge and the other direction's smoothness: a weak edge counts
-/// where the return is rough across (grazing ground is smooth across; a veil is not); a corner
-/// counts unless the return is flat across (the side face of a box, seen edge-on, is one return
-/// wide along the line but keeps its range from line to line; a veil changes with the background).
-/// Where the other direction has one immediate neighbour only (the first or last line of a nod
-/// sweep, or beside a void), a corner counts if the return does not keep that neighbour's range:
-/// it is then not flat (on benchmark seeds 1-15, 6 more mixed pixels in setting B and 8 in A, for
-/// 4 and 5 more valid returns rejected). A weak edge there is not counted: one neighbour cannot
-/// tell a veil from grazing ground, which changes range fast between lines but smoothly (counting
-/// those whose return is also off the chord of its neighbours along the line found 8 more mixed
-/// pixels in both settings for 11 valid returns, and 5 more of 18,110 on pure grazing ground).
-bool is_mixed(char edge, char other_direction) {
-  switch (edge) {
-    case kStrongEdge: return true;
-    case kCornerEdge: return other_direction == kSmooth || other_direction == kRough || other_direction == kOneChanging;
-    case kWeakEdge: return other_direction == kRough;
-    default: return false;
-  }
-}
-}  // namespace
+}  // namespace mixed_detail
+using namespace mixed_detail;
 
 namespace {
 /// One round of the tests over the returns still kept; labels what it finds.
-std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor, const char* focus) {
+std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor, const PoseSigma& pose_sigma, const char* focus) {
   const std::size_t n = pass.size();  // registered: checked by reject_mixed_pixels
   std::vector<char> usable(n), mixed(n, 0);
   for (std::size_t i = 0; i < n; ++i) usable[i] = pass.is_kept(i) && std::isfinite(pass.x[i]);
   ReturnsView v{n, pass.x.data(), pass.y.data(), pass.z.data(), pass.ox.data(), pass.oy.data(), pass.oz.data(),
                 pass.range_cal.data(), pass.amplitude.data(), usable.data()};
   v.focus = focus;
+  v.pose_position_sigma = pose_sigma.position;
+  v.pose_rpy_sigma = pose_sigma.rpy;
   const auto in_focus = [&](std::size_t b, std::size_t e, std::size_t stride) {
     if (!focus) return true;
     for (std::size_t i = b; i < e; i += stride)
@@ -418,6 +450,13 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
     behind_r.assign(n, NAN);
     behind_a.assign(n, NAN);
   }
+  bool organized = pass.line_count() > 1;
+  for (std::size_t k = 1; organized && k < pass.line_count(); ++k)
+    organized = pass.line_begin[k + 1] - pass.line_begin[k] == pass.line_begin[1] - pass.line_begin[0];
+  if (organized) {
+    v.width = pass.line_begin[1] - pass.line_begin[0];
+    v.cross = v.width;  // along a line, the other direction is the same beam on the next lines
+  }
   std::vector<std::size_t> seq;
   for (std::size_t k = 0; k < pass.line_count(); ++k) {
     if (!in_focus(pass.line_begin[k], pass.line_begin[k + 1], 1)) continue;
@@ -427,11 +466,9 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
     mark_smooth(v, seq, p, sensor.range_sigma, smooth_along);
     if (p.spikes) mark_spikes(v, seq, p, spike, behind_r, behind_a);
   }
-  bool organized = pass.line_count() > 1;
-  for (std::size_t k = 1; organized && k < pass.line_count(); ++k)
-    organized = pass.line_begin[k + 1] - pass.line_begin[k] == pass.line_begin[1] - pass.line_begin[0];
   if (p.across_lines && organized) {
     const std::size_t width = pass.line_begin[1] - pass.line_begin[0];
+    v.cross = 1;  // across lines, the other direction is the neighbouring beams on a line
     // Lines follow each other in nod only within one sweep: where the nod reverses, the next line
     // folds back over the last ones, so each sweep is a sequence of its own. The reversal is read
     // from three consecutive lines only (the extreme line ends its sweep), so a streamed window
@@ -492,13 +529,13 @@ int extra_rounds(const Pass& pass, const SensorParams& sensor) {
 }
 }  // namespace
 
-std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor) {
+std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor, const PoseSigma& pose_sigma) {
   if (pass.range_cal.size() != pass.size()) throw std::logic_error("reject_mixed_pixels needs a registered pass");
   const int rounds = extra_rounds(pass, sensor);
-  if (rounds == 0) return mark_round(pass, p, sensor, nullptr);
+  if (rounds == 0) return mark_round(pass, p, sensor, pose_sigma, nullptr);
   std::vector<char> before(pass.size()), last(pass.size());
   for (std::size_t i = 0; i < pass.size(); ++i) before[i] = pass.label[i] == Label::kMixedPixel;
-  std::size_t count = mark_round(pass, p, sensor, nullptr);
+  std::size_t count = mark_round(pass, p, sensor, pose_sigma, nullptr);
   // Where each return sits in its line, and the lines' width if they are all alike (organized:
   // the same beam on the next line is `width` returns on).
   std::vector<std::size_t> column(pass.size());
@@ -529,76 +566,18 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
       candidates += focus[i];
     }
     if (candidates == 0) break;
-    const std::size_t added = mark_round(pass, later, sensor, focus.data());
+    const std::size_t added = mark_round(pass, later, sensor, pose_sigma, focus.data());
     count += added;
     if (added == 0) break;
   }
   return count;
 }
 
-std::vector<char> mixed_pixels_in_cloud(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& viewpoint,
-                                        const std::vector<float>& amplitude, double resolution,
-                                        const MixedPixelParams& p, double range_sigma, CloudAngles angles,
-                                        const Eigen::Quaterniond& orientation) {
-  const Eigen::Matrix3d R_cloud_sensor = orientation.normalized().toRotationMatrix();
-  const std::size_t n = points.size();
-  std::vector<double> x(n), y(n), z(n), ox(n, viewpoint.x()), oy(n, viewpoint.y()), oz(n, viewpoint.z());
-  std::vector<float> range(n);
-  std::vector<char> usable(n), mixed(n, 0);
-  std::vector<double> az(n), el(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d d = points[i] - viewpoint;
-    x[i] = points[i].x();
-    y[i] = points[i].y();
-    z[i] = points[i].z();
-    range[i] = static_cast<float>(d.norm());
-    usable[i] = std::isfinite(range[i]) && range[i] > 0;
-    const Eigen::Vector3d ds = R_cloud_sensor.transpose() * d;
-    if (angles == CloudAngles::kNodding) {  // az: bearing in the scan plane, el: nod of the plane
-      az[i] = std::atan2(ds.y(), std::hypot(ds.x(), ds.z()));
-      el[i] = std::atan2(ds.z(), ds.x());
-    } else {
-      az[i] = std::atan2(ds.y(), ds.x());
-      el[i] = std::atan2(ds.z(), std::hypot(ds.x(), ds.y()));
-    }
-  }
-  ReturnsView v{n, x.data(), y.data(), z.data(), ox.data(), oy.data(), oz.data(), range.data(),
-                amplitude.size() == n ? amplitude.data() : nullptr, usable.data(), true};
-  // Bands of the spherical range image: rows (elevation) sorted by azimuth, columns (azimuth)
-  // sorted by elevation.
-  const auto band = [&](double a) { return static_cast<long>(std::floor(a / resolution + 0.5)); };
-  std::map<long, std::vector<std::size_t>> rows, cols;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (!usable[i]) continue;
-    rows[band(el[i])].push_back(i);
-    cols[band(az[i])].push_back(i);
-  }
-  // No spike test here (MixedPixelParams::spikes): a band of the range image interleaves the
-  // returns of neighbouring scan lines, so a return nearer than its two neighbours in the band is
-  // often just the nearer of two interleaved lines. On Kurt3D scan000 it removed 120 more
-  // points, 3 of them isolated in a depth jump; of twelve looked at, six sat in bands alternating
-  // between two lines' ranges (3.15 2.92 3.15 2.92 m) and one was a post interleaved with the
-  // wall behind it.
-  std::vector<char> along(n, 0), across(n, 0), smooth_along(n, 0), smooth_across(n, 0);
-  for (auto& [k, seq] : rows) {
-    std::sort(seq.begin(), seq.end(), [&](std::size_t a, std::size_t b) { return az[a] < az[b]; });
-    mark_mixed_pixels(v, seq, p, range_sigma, true, along);
-    mark_smooth(v, seq, p, range_sigma, smooth_along);
-  }
-  for (auto& [k, seq] : cols) {
-    std::sort(seq.begin(), seq.end(), [&](std::size_t a, std::size_t b) { return el[a] < el[b]; });
-    mark_mixed_pixels(v, seq, p, range_sigma, true, across);
-    mark_smooth(v, seq, p, range_sigma, smooth_across);
-  }
-  for (std::size_t i = 0; i < n; ++i)
-    mixed[i] = is_mixed(along[i], smooth_across[i]) || is_mixed(across[i], smooth_along[i]);
-  return mixed;
-}
-
 namespace {
 class RejectMixedPixelsStage final : public Stage {
  public:
-  RejectMixedPixelsStage(MixedPixelParams p, const RunContext& ctx) : params_(p), sensor_(ctx.config->sensor) {}
+  RejectMixedPixelsStage(MixedPixelParams p, const RunContext& ctx)
+      : params_(p), sensor_(ctx.config->sensor), pose_sigma_(ctx.poses ? ctx.config->pose_sigma : PoseSigma{0.0, 0.0}) {}
   StageKind kind() const override { return StageKind::kLabeller; }
   // Across lines it looks `window` lines (kObjectReach for a spike's object) each way, plus one
   // to read a nod reversal at the last of them.
@@ -609,11 +588,12 @@ class RejectMixedPixelsStage final : public Stage {
     return std::max(params_.window, params_.spikes ? static_cast<int>(kObjectReach) : 0) + 1 +
            kMaxExtraRounds * std::min(params_.window, kRoundWindow);
   }
-  void label(Pass& pass, StageReport&) const override { reject_mixed_pixels(pass, params_, sensor_); }
+  void label(Pass& pass, StageReport&) const override { reject_mixed_pixels(pass, params_, sensor_, pose_sigma_); }
 
  private:
   MixedPixelParams params_;
   SensorParams sensor_;
+  PoseSigma pose_sigma_;
 };
 }  // namespace
 

@@ -32,6 +32,10 @@
 // by more than the tolerance (the far surface's depth is unknown, so no edge jump is asked),
 // does not continue the surface beyond the void,
 // and has the beam geometry of 3. The end of a scan is not a void (ReturnsView::ends_are_voids).
+// A return on the plane of a side's 2-D patch (its two nearest returns and the nearest one's
+// neighbours in the other scan direction, where the four are one plane) continues that side, in
+// test 2 and in the one-sided test; beside a void across lines, a return as bright as its own side
+// may lie off that plane by the noise of two poses (`pose_sigma`): a mixture with a void is dimmer.
 // Spikes (`spikes`, organized passes with across_lines): a run of 1 to spike_width returns, each
 // nearer by more than an edge jump than both returns flanking the run along the line, which agree
 // with each other (one surface behind it), is a thin object or a mixture of one with the surface
@@ -101,6 +105,15 @@ struct ReturnsView {
   /// If set, only these returns are tested (their neighbours still count): the later rounds for
   /// runs of mixtures test only the returns next to one found in the round before.
   const char* focus = nullptr;
+  /// An organized pass: returns per line (0: not organized), and the index step to a return's
+  /// neighbour in the other scan direction than the sequences tested (`width` for sequences along
+  /// a line, 1 across lines; 0: none). With it, a side's two nearest returns and the neighbours of
+  /// the nearest in the other direction make a 2-D patch whose plane a return may continue.
+  std::size_t width = 0;
+  std::size_t cross = 0;
+  /// 1-sigma noise of the poses a line is registered with (position m, rpy rad; pose_sigma): two
+  /// lines' returns of one surface differ by it as well as by range noise.
+  double pose_position_sigma = 0.0, pose_rpy_sigma = 0.0;
 };
 
 /// What `mark_mixed_pixels` found at a return, in one scan direction.
@@ -118,7 +131,10 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
                        double range_sigma, bool coaxial, std::vector<char>& mixed);
 
 /// The stage's function over a registered pass: labels mixed pixels, returns how many.
-std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor);
+/// `pose_sigma` is the noise of the poses between lines (the `pose_sigma:` block); the default is
+/// none: returns of one surface on different lines differ by range noise only.
+std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor,
+                                const PoseSigma& pose_sigma = PoseSigma{0.0, 0.0});
 
 /// How an unorganized cloud's points are put back into scan order.
 enum class CloudAngles {
