@@ -80,7 +80,7 @@ bool on_plane_of(const ReturnsView& v, std::size_t i, std::size_t a, std::size_t
 /// The neighbours of return a in the other scan direction (both usable), if the view has one.
 bool cross_neighbours(const ReturnsView& v, std::size_t a, std::size_t& c0, std::size_t& c1) {
   if (v.cross == 0 || v.width == 0) return false;
-  if (v.cross == 1) {  // neighbouring beams on a's line
+  if (v.across) {  // neighbouring beams on a's line
     if (a % v.width == 0 || (a + 1) % v.width == 0) return false;
     c0 = a - 1;
     c1 = a + 1;
@@ -98,7 +98,7 @@ bool cross_neighbours(const ReturnsView& v, std::size_t a, std::size_t& c0, std:
 /// plane predicts the range on a plane at any incidence and for any spacing of the lines (a nod
 /// that speeds up or turns), where a trend through returns of one beam bends with the beam's
 /// trace over the surface.
-bool on_patch_of(const ReturnsView& v, std::size_t i, const Nb& nb, double tol, bool pose_noise) {
+bool on_patch_of(const ReturnsView& v, std::size_t i, const Nb& nb, double tol, bool excuse_poses) {
   if (nb.count < 2) return false;
   std::size_t c0 = 0, c1 = 0;
   const std::size_t a = nb.idx[0], b = nb.idx[1];
@@ -106,21 +106,25 @@ bool on_patch_of(const ReturnsView& v, std::size_t i, const Nb& nb, double tol, 
   const auto P = [&](std::size_t k) { return Eigen::Vector3d(v.x[k], v.y[k], v.z[k]); };
   const auto O = [&](std::size_t k) { return Eigen::Vector3d(v.ox[k], v.oy[k], v.oz[k]); };
   const Eigen::Vector3d pa = P(a), u = P(b) - pa, w = P(c1) - P(c0);
+  // a lies between its two neighbours (not where the nod reverses and both are on one side).
+  if (!(w.dot(pa - P(c0)) > 0 && w.dot(P(c1) - pa) > 0)) return false;
   Eigen::Vector3d nrm = u.cross(w);
   const double nn = nrm.norm();
   if (!(nn > 0.2 * u.norm() * w.norm())) return false;  // the two directions nearly parallel
   nrm /= nn;
-  // Distance from the plane of return k, and the tolerance for it: the range tolerance seen
-  // along the normal (a grazing beam's range noise moves it little off the plane), plus the
-  // noise of two poses where the patch lies on other lines than the return.
-  const auto off = [&](std::size_t k, bool other_line) {
+  // How far return k lies past its allowance off the plane: the range tolerance seen along the
+  // normal (a grazing beam's range noise moves it little off the plane), plus, where k was
+  // registered with another pose than a (another line) and `poses` says so, two poses' noise.
+  const auto past = [&](std::size_t k, bool poses) {
     const Eigen::Vector3d d = P(k) - O(k);
     const double r = d.norm(), c = std::fabs(nrm.dot(d)) / r;
     const double ps = std::sqrt(v.pose_position_sigma * v.pose_position_sigma + r * r * v.pose_rpy_sigma * v.pose_rpy_sigma);
-    return std::fabs(nrm.dot(P(k) - pa)) - (tol * c + (other_line && pose_noise ? 3.0 * std::sqrt(2.0) * ps : 0.0));
+    return std::fabs(nrm.dot(P(k) - pa)) - (tol * c + (poses ? 3.0 * std::sqrt(2.0) * ps : 0.0));
   };
-  if (!(off(c0, v.cross != 1) <= 0) || !(off(c1, v.cross != 1) <= 0)) return false;
-  return off(i, v.cross == 1) <= 0;
+  // The patch is one plane: along a line a's neighbours are on other lines (their poses' noise is
+  // allowed), across lines they are on a's line.
+  if (!(past(c0, !v.across) <= 0) || !(past(c1, !v.across) <= 0)) return false;
+  return past(i, v.across && excuse_poses) <= 0;
 }
 
 double angle_to(const ReturnsView& v, std::size_t i, std::size_t j) {
@@ -167,11 +171,15 @@ bool breaks_from_side(const ReturnsView& v, std::size_t i, const Nb& own, const 
     }
   }
   if (std::fabs(ri - trend) <= std::max(tol, allow)) return false;
-  // On its own surface's plane, within the noise of two lines' poses where it is as bright as that
-  // surface: a mixture with a void (a surface too weak to return) loses the void's share of the power.
+  // On its own surface's plane; across lines within the noise of two lines' poses where the return
+  // is as bright as that surface: a mixture with a void (a surface too weak to return) loses the
+  // void's share of the power. Only where the amplitude can tell: the surface's amplitude is not
+  // clipped and its lower bound, (1 - amplitude_ratio) a - amplitude_slack, is above zero.
   if (on_plane_of(v, i, own.idx[0], own.idx[1], tol)) return false;
   const double a = v.amplitude ? static_cast<double>(v.amplitude[i]) : NAN, a_own = side_amp(v, own, p);
-  const bool as_bright = std::isfinite(a) && std::isfinite(a_own) && a >= a_own * (1 - p.amplitude_ratio) - p.amplitude_slack;
+  const bool as_bright = std::isfinite(a) && std::isfinite(a_own) && a_own < p.amplitude_saturation &&
+                         a_own * (1 - p.amplitude_ratio) - p.amplitude_slack > 0 &&
+                         a >= a_own * (1 - p.amplitude_ratio) - p.amplitude_slack;
   if (on_patch_of(v, i, own, tol, as_bright)) return false;
   if (on_patch_of(v, i, gap, tol, false)) return false;
   if (gap.count >= 2 && gap.at[1] == gap.at[0] + 1 && on_plane_of(v, i, gap.idx[0], gap.idx[1], tol)) return false;
@@ -308,6 +316,10 @@ void mark_smooth(const ReturnsView& v, const std::vector<std::size_t>& seq, cons
       smooth[i] = std::fabs(v.range[b] - v.range[a]) <= jump_at(p, v.range[i]) ? kFlat : kSmooth;
   }
 }
+}  // namespace mixed_detail
+using namespace mixed_detail;
+
+namespace {
 
 /// Spikes along a sequence: a run of 1 to spike_width returns, each nearer than both returns
 /// flanking the run by more than an edge jump, and the two flanks agree with each other (one
@@ -420,8 +432,7 @@ void mark_spikes_off_surface(const ReturnsView& v, const std::vector<std::size_t
   }
 }
 
-}  // namespace mixed_detail
-using namespace mixed_detail;
+}  // namespace
 
 namespace {
 /// One round of the tests over the returns still kept; labels what it finds.
@@ -455,7 +466,7 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
     organized = pass.line_begin[k + 1] - pass.line_begin[k] == pass.line_begin[1] - pass.line_begin[0];
   if (organized) {
     v.width = pass.line_begin[1] - pass.line_begin[0];
-    v.cross = v.width;  // along a line, the other direction is the same beam on the next lines
+    v.cross = v.width;  // along a line, the other direction is the same beam on the lines before and after
   }
   std::vector<std::size_t> seq;
   for (std::size_t k = 0; k < pass.line_count(); ++k) {
@@ -469,6 +480,7 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
   if (p.across_lines && organized) {
     const std::size_t width = pass.line_begin[1] - pass.line_begin[0];
     v.cross = 1;  // across lines, the other direction is the neighbouring beams on a line
+    v.across = true;
     // Lines follow each other in nod only within one sweep: where the nod reverses, the next line
     // folds back over the last ones, so each sweep is a sequence of its own. The reversal is read
     // from three consecutive lines only (the extreme line ends its sweep), so a streamed window
@@ -582,7 +594,7 @@ class RejectMixedPixelsStage final : public Stage {
   // Across lines it looks `window` lines (kObjectReach for a spike's object) each way, plus one
   // to read a nod reversal at the last of them.
   int reach() const override {
-    if (!params_.across_lines) return 0;
+    if (!params_.across_lines) return 1;  // a side's 2-D patch: the lines before and after
     // Each extra round (runs of mixtures) reads its narrower window across the lines the round
     // before labelled (the nod reversals it also reads are raw data: no more lines).
     return std::max(params_.window, params_.spikes ? static_cast<int>(kObjectReach) : 0) + 1 +
