@@ -543,7 +543,14 @@ int extra_rounds(const Pass& pass, const SensorParams& sensor) {
 
 std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor, const PoseSigma& pose_sigma) {
   if (pass.range_cal.size() != pass.size()) throw std::logic_error("reject_mixed_pixels needs a registered pass");
-  const int rounds = extra_rounds(pass, sensor);
+  // Along a line the footprint spans divergence / bearing step beams, the same on every line.
+  // Across lines it spans divergence / the line step, which a nod that speeds up, slows down or
+  // turns changes from line to line: past the rounds the bearing step allows, a return's rounds
+  // across lines are set by the nod step to the neighbouring line's same beam (read locally, so
+  // a streamed window decides as the whole pass does).
+  const int along = extra_rounds(pass, sensor);
+  const bool more_across = p.across_lines && pass.line_count() > 2 && sensor.beam_divergence > 0;
+  const int rounds = more_across ? kMaxExtraRounds : along;
   if (rounds == 0) return mark_round(pass, p, sensor, pose_sigma, nullptr);
   std::vector<char> before(pass.size()), last(pass.size());
   for (std::size_t i = 0; i < pass.size(); ++i) before[i] = pass.label[i] == Label::kMixedPixel;
@@ -571,9 +578,17 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
     std::size_t candidates = 0;
     for (std::size_t i = 0; i < pass.size(); ++i) {
       const std::size_t b = column[i];
-      const bool in_line = (b > 0 && last[i - 1]) || (i + 1 < pass.size() && column[i + 1] == b + 1 && last[i + 1]);
-      const bool across = p.across_lines && width > 0 &&
-                          ((i >= width && last[i - width]) || (i + width < pass.size() && last[i + width]));
+      const bool in_line = round < along && ((b > 0 && last[i - 1]) || (i + 1 < pass.size() && column[i + 1] == b + 1 && last[i + 1]));
+      // Past the rounds the bearing step allows, round + 1 more mixtures fit in the footprint
+      // across lines where the nod moved the beam by at most divergence / (round + 1) between
+      // the two lines (no move: no nod reading, nothing to say).
+      const auto deep = [&](std::size_t j) {
+        if (!last[j]) return false;
+        if (round < along) return true;
+        const double step = std::fabs(static_cast<double>(pass.nod[i]) - static_cast<double>(pass.nod[j]));
+        return step > 0 && (round + 1) * step <= sensor.beam_divergence;
+      };
+      const bool across = p.across_lines && width > 0 && ((i >= width && deep(i - width)) || (i + width < pass.size() && deep(i + width)));
       focus[i] = !before[i] && pass.is_kept(i) && (in_line || across);
       candidates += focus[i];
     }
