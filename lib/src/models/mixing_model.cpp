@@ -44,4 +44,11 @@ double range_on_line(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, 
   return t;
 }
 
+double range_on_plane(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, const Eigen::Vector3d& point,
+                      const Eigen::Vector3d& normal) {
+  const double c = normal.dot(dir);  // cosine of the incidence
+  if (!(std::fabs(c) >= 1e-7)) return NAN;
+  return normal.dot(point - origin) / c;
+}
+
 }  // namespace pcdp

@@ -79,15 +79,15 @@ bool on_plane_of(const ReturnsView& v, std::size_t i, std::size_t a, std::size_t
 
 /// The neighbours of return a in the other scan direction (both usable), if the view has one.
 bool cross_neighbours(const ReturnsView& v, std::size_t a, std::size_t& c0, std::size_t& c1) {
-  if (v.cross == 0 || v.width == 0) return false;
+  if (v.width == 0) return false;
   if (v.across) {  // neighbouring beams on a's line
     if (a % v.width == 0 || (a + 1) % v.width == 0) return false;
     c0 = a - 1;
     c1 = a + 1;
   } else {  // the same beam on the lines before and after
-    if (a < v.cross || a + v.cross >= v.n) return false;
-    c0 = a - v.cross;
-    c1 = a + v.cross;
+    if (a < v.width || a + v.width >= v.n) return false;
+    c0 = a - v.width;
+    c1 = a + v.width;
   }
   return v.usable[c0] && v.usable[c1];
 }
@@ -112,14 +112,17 @@ bool on_patch_of(const ReturnsView& v, std::size_t i, const Nb& nb, double tol, 
   const double nn = nrm.norm();
   if (!(nn > 0.2 * u.norm() * w.norm())) return false;  // the two directions nearly parallel
   nrm /= nn;
-  // How far return k lies past its allowance off the plane: the range tolerance seen along the
-  // normal (a grazing beam's range noise moves it little off the plane), plus, where k was
-  // registered with another pose than a (another line) and `poses` says so, two poses' noise.
+  // How far return k lies past its allowance off the plane, along the normal: the range
+  // tolerance along k's beam (seen along the normal it shrinks with the cosine of the incidence:
+  // a grazing beam's range noise moves it little off the plane), plus, where k was registered
+  // with another pose than a (another line) and `poses` says so, two poses' noise, which moves a
+  // point in any direction. NaN (not on the plane) where k's beam runs along the plane.
   const auto past = [&](std::size_t k, bool poses) {
-    const Eigen::Vector3d d = P(k) - O(k);
-    const double r = d.norm(), c = std::fabs(nrm.dot(d)) / r;
+    const Eigen::Vector3d o = O(k), d = P(k) - o;
+    const double r = d.norm();
+    const double c = std::fabs(nrm.dot(d)) / r;
     const double ps = std::sqrt(v.pose_position_sigma * v.pose_position_sigma + r * r * v.pose_rpy_sigma * v.pose_rpy_sigma);
-    return std::fabs(nrm.dot(P(k) - pa)) - (tol * c + (poses ? 3.0 * std::sqrt(2.0) * ps : 0.0));
+    return c * (std::fabs(r - range_on_plane(o, d / r, pa, nrm)) - tol) - (poses ? 3.0 * std::sqrt(2.0) * ps : 0.0);
   };
   // The patch is one plane: along a line a's neighbours are on other lines (their poses' noise is
   // allowed), across lines they are on a's line.
@@ -466,7 +469,6 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
     organized = pass.line_begin[k + 1] - pass.line_begin[k] == pass.line_begin[1] - pass.line_begin[0];
   if (organized) {
     v.width = pass.line_begin[1] - pass.line_begin[0];
-    v.cross = v.width;  // along a line, the other direction is the same beam on the lines before and after
   }
   std::vector<std::size_t> seq;
   for (std::size_t k = 0; k < pass.line_count(); ++k) {
@@ -478,9 +480,7 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
     if (p.spikes) mark_spikes(v, seq, p, spike, behind_r, behind_a);
   }
   if (p.across_lines && organized) {
-    const std::size_t width = pass.line_begin[1] - pass.line_begin[0];
-    v.cross = 1;  // across lines, the other direction is the neighbouring beams on a line
-    v.across = true;
+    v.across = true;  // a return's patch: its neighbouring beams on its line
     // Lines follow each other in nod only within one sweep: where the nod reverses, the next line
     // folds back over the last ones, so each sweep is a sequence of its own. The reversal is read
     // from three consecutive lines only (the extreme line ends its sweep), so a streamed window
@@ -491,8 +491,8 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
     for (std::size_t k = 2; k < pass.line_count(); ++k)
       if ((nod_of(k) - nod_of(k - 1)) * (nod_of(k - 1) - nod_of(k - 2)) < 0) sweep_begin.push_back(k);
     sweep_begin.push_back(pass.line_count());
-    for (std::size_t b = 0; b < width; ++b) {
-      if (!in_focus(b, n, width)) continue;
+    for (std::size_t b = 0; b < v.width; ++b) {
+      if (!in_focus(b, n, v.width)) continue;
       for (std::size_t s = 0; s + 1 < sweep_begin.size(); ++s) {
         seq.clear();
         for (std::size_t k = sweep_begin[s]; k < sweep_begin[s + 1]; ++k) seq.push_back(pass.line_begin[k] + b);

@@ -116,6 +116,39 @@ TEST(MixingModel, PlaneModelRefusesDegenerateLines) {
   EXPECT_TRUE(std::isnan(miss));
 }
 
+TEST(MixingModel, PlanePredictionMeetsThePlaneAndAgreesWithTheLineModel) {
+  // Random planes and rays: the predicted point lies on the plane; for two returns a, b on the
+  // plane in the ray's own fan (one scan line), the line model predicts the same range; a ray
+  // parallel to the plane predicts nothing.
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  int tested = 0;
+  for (int k = 0; k < 500; ++k) {
+    const Eigen::Vector3d o(u(rng), u(rng), 1.0 + u(rng));
+    const Eigen::Vector3d n = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
+    const Eigen::Vector3d q = o + Eigen::Vector3d(6 * u(rng), 6 * u(rng), 6 * u(rng));  // a point on the plane
+    const Eigen::Vector3d d0 = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
+    const Eigen::Vector3d axis = d0.unitOrthogonal();
+    Eigen::Vector3d dir[3];
+    double t[3];
+    bool ok = true;
+    for (int j = 0; j < 3; ++j) {
+      dir[j] = Eigen::AngleAxisd(0.01 * j, axis) * d0;
+      t[j] = range_on_plane(o, dir[j], q, n);
+      ok = ok && std::isfinite(t[j]) && t[j] > 0 && t[j] < 60 && std::fabs(n.dot(dir[j])) > 0.05;
+    }
+    if (!ok) continue;
+    ++tested;
+    EXPECT_NEAR(n.dot(o + t[0] * dir[0] - q), 0.0, 1e-9 * t[0]) << k;
+    EXPECT_NEAR(t[0], range_on_line(o, dir[0], o + t[1] * dir[1], o + t[2] * dir[2]), 1e-6 * t[0]) << k;
+  }
+  EXPECT_GT(tested, 100);
+  const Eigen::Vector3d o(0, 0, 1), n(0, 0, 1);
+  EXPECT_TRUE(std::isnan(range_on_plane(o, {1, 0, 0}, {5, 0, 0}, n)));                      // parallel: nothing
+  EXPECT_NEAR(range_on_plane(o, Eigen::Vector3d(1, 0, -1).normalized(), {5, 3, 0}, n), std::sqrt(2.0), 1e-12);  // ground, 45 deg
+  EXPECT_LT(range_on_plane(o, {0, 0, 1}, {0, 0, 0}, n), 0.0);                                // the plane is behind
+}
+
 TEST(MixingModel, AgreesWithTheRayTracedSimulator) {
   // A coaxial beam (nothing hidden from the receiver) straddling the vertical edge of a near box
   // in front of a far wall: the simulator's range and amplitude must be a mixture of the model's,

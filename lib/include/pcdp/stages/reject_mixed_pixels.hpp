@@ -105,12 +105,12 @@ struct ReturnsView {
   /// If set, only these returns are tested (their neighbours still count): the later rounds for
   /// runs of mixtures test only the returns next to one found in the round before.
   const char* focus = nullptr;
-  /// An organized pass: returns per line (0: not organized), and the index step to a return's
-  /// neighbour in the other scan direction than the sequences tested (`width` for sequences along
-  /// a line, 1 across lines; 0: none). With it, a side's two nearest returns and the neighbours of
-  /// the nearest in the other direction make a 2-D patch whose plane a return may continue.
+  /// An organized pass: returns per line (0: not organized). With it, a side's two nearest
+  /// returns and the neighbours of the nearest in the other scan direction than the sequences
+  /// tested (the same beam on the lines before and after, `width` returns away, for sequences
+  /// along a line; the beams beside it on its line for sequences across lines) make a 2-D patch
+  /// whose plane a return may continue.
   std::size_t width = 0;
-  std::size_t cross = 0;
   bool across = false;  ///< the sequences run across lines (a return's patch is on another line)
   /// 1-sigma noise of the poses a line is registered with (position m, rpy rad; pose_sigma): two
   /// lines' returns of one surface differ by it as well as by range noise.
