@@ -13,8 +13,6 @@ namespace pcdp {
 
 namespace {
 constexpr double kPi = 3.14159265358979323846;
-constexpr int kMaxExtraRounds = 2;
-constexpr int kRoundWindow = 3;  ///< returns searched each way in the rounds after the first
 /// The smallest range step that makes an edge at range r (jump_min, or jump_ratio of r if larger).
 double jump_at(const MixedPixelParams& p, double r) { return std::max(p.jump_min, p.jump_ratio * r); }
 /// How far from a surface a return at range r may lie and still be on it.
@@ -362,7 +360,6 @@ void mark_spikes(const ReturnsView& v, const std::vector<std::size_t>& seq, cons
 /// How many lines on each side of a spike the amplitude test follows its object: the pure
 /// returns of a post's top are within two or three lines of its mixtures near a nod reversal,
 /// where the nod barely moves from line to line.
-constexpr long kObjectReach = 4;
 
 /// Whether a spike return whose neighbours across lines keep its range is nevertheless a mixture
 /// by its amplitude (the mixing model of test 4 used the other way round, as evidence for a
@@ -439,21 +436,17 @@ void mark_spikes_off_surface(const ReturnsView& v, const std::vector<std::size_t
 
 namespace {
 /// One round of the tests over the returns still kept; labels what it finds.
-std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor, const PoseSigma& pose_sigma, const char* focus) {
+/// The returns it labels are appended to `labelled` if given.
+std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor, const PoseSigma& pose_sigma, const char* focus,
+                       std::vector<std::size_t>* labelled = nullptr) {
   const std::size_t n = pass.size();  // registered: checked by reject_mixed_pixels
-  std::vector<char> usable(n), mixed(n, 0);
+  std::vector<char> usable(n);
   for (std::size_t i = 0; i < n; ++i) usable[i] = pass.is_kept(i) && std::isfinite(pass.x[i]);
   ReturnsView v{n, pass.x.data(), pass.y.data(), pass.z.data(), pass.ox.data(), pass.oy.data(), pass.oz.data(),
                 pass.range_cal.data(), pass.amplitude.data(), usable.data()};
   v.focus = focus;
   v.pose_position_sigma = pose_sigma.position;
   v.pose_rpy_sigma = pose_sigma.rpy;
-  const auto in_focus = [&](std::size_t b, std::size_t e, std::size_t stride) {
-    if (!focus) return true;
-    for (std::size_t i = b; i < e; i += stride)
-      if (focus[i]) return true;
-    return false;
-  };
   const bool coaxial = sensor.transceiver_separation <= 0.0;
   // Candidates along and across lines (2: strong edge, 1: weak edge), and where each return lies
   // smoothly on a surface in each direction. A weak-edge candidate that is smooth in the other
@@ -470,9 +463,22 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
   if (organized) {
     v.width = pass.line_begin[1] - pass.line_begin[0];
   }
+  // With a focus, the returns to test, and the lines holding one (a later round reads only those
+  // lines and, across lines, only the stretches of a column that hold one).
+  std::vector<std::size_t> tested;
+  std::vector<char> line_tested;
+  if (focus) {
+    line_tested.assign(pass.line_count(), 0);
+    for (std::size_t k = 0; k < pass.line_count(); ++k)
+      for (std::size_t i = pass.line_begin[k]; i < pass.line_begin[k + 1]; ++i)
+        if (focus[i]) {
+          tested.push_back(i);
+          line_tested[k] = 1;
+        }
+  }
   std::vector<std::size_t> seq;
   for (std::size_t k = 0; k < pass.line_count(); ++k) {
-    if (!in_focus(pass.line_begin[k], pass.line_begin[k + 1], 1)) continue;
+    if (focus && !line_tested[k]) continue;
     seq.clear();
     for (std::size_t i = pass.line_begin[k]; i < pass.line_begin[k + 1]; ++i) seq.push_back(i);
     mark_mixed_pixels(v, seq, p, sensor.range_sigma, coaxial, along);
@@ -491,9 +497,19 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
     for (std::size_t k = 2; k < pass.line_count(); ++k)
       if ((nod_of(k) - nod_of(k - 1)) * (nod_of(k - 1) - nod_of(k - 2)) < 0) sweep_begin.push_back(k);
     sweep_begin.push_back(pass.line_count());
+    const std::size_t sweeps = sweep_begin.size() - 1;
+    std::vector<char> stretch_tested;  // [sweep * width + column]
+    if (focus) {
+      stretch_tested.assign(sweeps * v.width, 0);
+      std::size_t s = 0;
+      for (const std::size_t i : tested) {  // in line order
+        while (i >= pass.line_begin[sweep_begin[s + 1]]) ++s;
+        stretch_tested[s * v.width + (i - pass.line_begin[sweep_begin[s]]) % v.width] = 1;
+      }
+    }
     for (std::size_t b = 0; b < v.width; ++b) {
-      if (!in_focus(b, n, v.width)) continue;
-      for (std::size_t s = 0; s + 1 < sweep_begin.size(); ++s) {
+      for (std::size_t s = 0; s < sweeps; ++s) {
+        if (focus && !stretch_tested[s * v.width + b]) continue;
         seq.clear();
         for (std::size_t k = sweep_begin[s]; k < sweep_begin[s + 1]; ++k) seq.push_back(pass.line_begin[k] + b);
         mark_mixed_pixels(v, seq, p, sensor.range_sigma, coaxial, across);
@@ -502,14 +518,18 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
       }
     }
   }
-  for (std::size_t i = 0; i < n; ++i)
-    mixed[i] = is_mixed(along[i], smooth_across[i]) || is_mixed(across[i], smooth_along[i]) || spike_off[i];
   std::size_t count = 0;
-  for (std::size_t i = 0; i < n; ++i)
-    if (mixed[i]) {
+  const auto verdict = [&](std::size_t i) {
+    if (is_mixed(along[i], smooth_across[i]) || is_mixed(across[i], smooth_along[i]) || spike_off[i]) {
       pass.label[i] = Label::kMixedPixel;
       ++count;
+      if (labelled) labelled->push_back(i);
     }
+  };
+  if (focus)
+    for (const std::size_t i : tested) verdict(i);
+  else
+    for (std::size_t i = 0; i < n; ++i) verdict(i);
   return count;
 }
 
@@ -552,86 +572,56 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
   const bool more_across = p.across_lines && pass.line_count() > 2 && sensor.beam_divergence > 0;
   const int rounds = more_across ? kMaxExtraRounds : along;
   if (rounds == 0) return mark_round(pass, p, sensor, pose_sigma, nullptr);
-  std::vector<char> before(pass.size()), last(pass.size());
-  for (std::size_t i = 0; i < pass.size(); ++i) before[i] = pass.label[i] == Label::kMixedPixel;
-  std::size_t count = mark_round(pass, p, sensor, pose_sigma, nullptr);
+  std::vector<std::size_t> found;  // labelled in the round before
+  std::size_t count = mark_round(pass, p, sensor, pose_sigma, nullptr, &found);
   // Where each return sits in its line, and the lines' width if they are all alike (organized:
   // the same beam on the next line is `width` returns on).
-  std::vector<std::size_t> column(pass.size());
+  const std::size_t n = pass.size();
+  std::vector<std::size_t> column(n);
   std::size_t width = pass.line_begin[1] - pass.line_begin[0];  // rounds > 0: a line has 3 returns
   for (std::size_t k = 0; k < pass.line_count(); ++k) {
     if (pass.line_begin[k + 1] - pass.line_begin[k] != width) width = 0;
     for (std::size_t i = pass.line_begin[k]; i < pass.line_begin[k + 1]; ++i) column[i] = i - pass.line_begin[k];
   }
-  std::vector<char> focus(pass.size());
+  std::vector<char> focus(n, 0);
+  std::vector<std::size_t> focused;
   // The later rounds look at most kRoundWindow returns each way for a run's sides (a run's
   // sides are next to it), so each adds kRoundWindow lines to the stage's reach. No spikes:
   // a run is an edge's.
   MixedPixelParams later = p;
   later.spikes = false;
   later.window = std::min(p.window, kRoundWindow);
-  for (int round = 0; round < rounds && count > 0; ++round) {
-    for (std::size_t i = 0; i < pass.size(); ++i) {
-      last[i] = pass.label[i] == Label::kMixedPixel && !before[i];  // found in the round before
-      before[i] = pass.label[i] == Label::kMixedPixel;
+  for (int round = 0; round < rounds && !found.empty(); ++round) {
+    for (const std::size_t i : focused) focus[i] = 0;
+    focused.clear();
+    const auto consider = [&](std::size_t i) {
+      if (focus[i] || !pass.is_kept(i)) return;
+      focus[i] = 1;
+      focused.push_back(i);
+    };
+    // Past the rounds the bearing step allows, round + 1 more mixtures fit in the footprint
+    // across lines where the nod moved the beam by at most divergence / (round + 1) between the
+    // two lines (no move: no nod reading, nothing to say).
+    const auto deep = [&](std::size_t i, std::size_t j) {
+      if (round < along) return true;
+      const double step = std::fabs(static_cast<double>(pass.nod[i]) - static_cast<double>(pass.nod[j]));
+      return step > 0 && (round + 1) * step <= sensor.beam_divergence;
+    };
+    for (const std::size_t j : found) {  // the returns next to one found in the round before
+      if (round < along) {
+        if (column[j] > 0) consider(j - 1);
+        if (j + 1 < n && column[j + 1] == column[j] + 1) consider(j + 1);
+      }
+      if (p.across_lines && width > 0) {
+        if (j >= width && deep(j - width, j)) consider(j - width);
+        if (j + width < n && deep(j + width, j)) consider(j + width);
+      }
     }
-    std::size_t candidates = 0;
-    for (std::size_t i = 0; i < pass.size(); ++i) {
-      const std::size_t b = column[i];
-      const bool in_line = round < along && ((b > 0 && last[i - 1]) || (i + 1 < pass.size() && column[i + 1] == b + 1 && last[i + 1]));
-      // Past the rounds the bearing step allows, round + 1 more mixtures fit in the footprint
-      // across lines where the nod moved the beam by at most divergence / (round + 1) between
-      // the two lines (no move: no nod reading, nothing to say).
-      const auto deep = [&](std::size_t j) {
-        if (!last[j]) return false;
-        if (round < along) return true;
-        const double step = std::fabs(static_cast<double>(pass.nod[i]) - static_cast<double>(pass.nod[j]));
-        return step > 0 && (round + 1) * step <= sensor.beam_divergence;
-      };
-      const bool across = p.across_lines && width > 0 && ((i >= width && deep(i - width)) || (i + width < pass.size() && deep(i + width)));
-      focus[i] = !before[i] && pass.is_kept(i) && (in_line || across);
-      candidates += focus[i];
-    }
-    if (candidates == 0) break;
-    const std::size_t added = mark_round(pass, later, sensor, pose_sigma, focus.data());
-    count += added;
-    if (added == 0) break;
+    if (focused.empty()) break;
+    found.clear();
+    count += mark_round(pass, later, sensor, pose_sigma, focus.data(), &found);
   }
   return count;
-}
-
-namespace {
-class RejectMixedPixelsStage final : public Stage {
- public:
-  RejectMixedPixelsStage(MixedPixelParams p, const RunContext& ctx)
-      : params_(p), sensor_(ctx.config->sensor), pose_sigma_(ctx.poses ? ctx.config->pose_sigma : PoseSigma{0.0, 0.0}) {}
-  StageKind kind() const override { return StageKind::kLabeller; }
-  // Across lines it looks `window` lines (kObjectReach for a spike's object) each way, plus one
-  // to read a nod reversal at the last of them.
-  int reach() const override {
-    if (!params_.across_lines) return 1;  // a side's 2-D patch: the lines before and after
-    // Each extra round (runs of mixtures) reads its narrower window across the lines the round
-    // before labelled (the nod reversals it also reads are raw data: no more lines).
-    return std::max(params_.window, params_.spikes ? static_cast<int>(kObjectReach) : 0) + 1 +
-           kMaxExtraRounds * std::min(params_.window, kRoundWindow);
-  }
-  void label(Pass& pass, StageReport&) const override { reject_mixed_pixels(pass, params_, sensor_, pose_sigma_); }
-
- private:
-  MixedPixelParams params_;
-  SensorParams sensor_;
-  PoseSigma pose_sigma_;
-};
-}  // namespace
-
-StageInfo reject_mixed_pixels_stage_info() {
-  return {"reject_mixed_pixels",
-          "mixed pixels (veil points) between foreground and background: geometry and amplitude mixing",
-          reject_mixed_pixels_schema(),
-          [](const StageConfig& sc, const RunContext& ctx) -> std::unique_ptr<Stage> {
-            const MixedPixelParams p = reject_mixed_pixels_options().bind(sc.options);
-            return std::make_unique<RejectMixedPixelsStage>(p, ctx);
-          }};
 }
 
 }  // namespace pcdp

@@ -1,5 +1,6 @@
 // Internal to stage `reject_mixed_pixels` (not installed): the pieces its organized-pass and
-// unorganized-cloud entry points share (reject_mixed_pixels.cpp, reject_mixed_pixels_cloud.cpp).
+// unorganized-cloud entry points and its pipeline stage share (reject_mixed_pixels.cpp,
+// reject_mixed_pixels_cloud.cpp, reject_mixed_pixels_stage.cpp).
 #pragma once
 
 #include <cstddef>
@@ -8,6 +9,13 @@
 #include "pcdp/stages/reject_mixed_pixels.hpp"
 
 namespace pcdp::mixed_detail {
+
+/// The most extra rounds for runs of mixtures (a footprint up to three returns wide).
+constexpr int kMaxExtraRounds = 2;
+/// Returns searched each way in the rounds after the first.
+constexpr int kRoundWindow = 3;
+/// Lines searched each way for the object a spike may be a mixture with.
+constexpr long kObjectReach = 4;
 
 /// How the return at `pos` lies between its immediate neighbours in one direction. With only one
 /// immediate neighbour (the other position is a void, or the end of the line or of the sweep),

@@ -1,0 +1,49 @@
+// Stage `reject_mixed_pixels` as the pipeline schedules it: a per-pass labeller, the lines it
+// reads on each side in streaming, and its construction from the validated options. The
+// algorithm is in reject_mixed_pixels.cpp, the options in reject_mixed_pixels_options.cpp.
+#include <algorithm>
+#include <memory>
+
+#include "pcdp/pipeline/config.hpp"
+#include "pcdp/stages/reject_mixed_pixels.hpp"
+#include "reject_mixed_pixels_detail.hpp"
+
+namespace pcdp {
+
+using namespace mixed_detail;
+
+namespace {
+class RejectMixedPixelsStage final : public Stage {
+ public:
+  RejectMixedPixelsStage(MixedPixelParams p, const RunContext& ctx)
+      : params_(p), sensor_(ctx.config->sensor), pose_sigma_(ctx.poses ? ctx.config->pose_sigma : PoseSigma{0.0, 0.0}) {}
+  StageKind kind() const override { return StageKind::kLabeller; }
+  // Across lines it looks `window` lines (kObjectReach for a spike's object) each way, plus one
+  // to read a nod reversal at the last of them.
+  int reach() const override {
+    if (!params_.across_lines) return 1;  // a side's 2-D patch: the lines before and after
+    // Each extra round (runs of mixtures) reads its narrower window across the lines the round
+    // before labelled (the nod reversals it also reads are raw data: no more lines).
+    return std::max(params_.window, params_.spikes ? static_cast<int>(kObjectReach) : 0) + 1 +
+           kMaxExtraRounds * std::min(params_.window, kRoundWindow);
+  }
+  void label(Pass& pass, StageReport&) const override { reject_mixed_pixels(pass, params_, sensor_, pose_sigma_); }
+
+ private:
+  MixedPixelParams params_;
+  SensorParams sensor_;
+  PoseSigma pose_sigma_;
+};
+}  // namespace
+
+StageInfo reject_mixed_pixels_stage_info() {
+  return {"reject_mixed_pixels",
+          "mixed pixels (veil points) between foreground and background: geometry and amplitude mixing",
+          reject_mixed_pixels_schema(),
+          [](const StageConfig& sc, const RunContext& ctx) -> std::unique_ptr<Stage> {
+            const MixedPixelParams p = reject_mixed_pixels_options().bind(sc.options);
+            return std::make_unique<RejectMixedPixelsStage>(p, ctx);
+          }};
+}
+
+}  // namespace pcdp
