@@ -7,6 +7,7 @@
 #include <random>
 
 #include "pcdp/pipeline/config.hpp"
+#include "pcdp/pipeline/stage.hpp"
 #include "pcdp/core/pass.hpp"
 #include "sim/bench_scenes.hpp"
 #include "pcdp/stages/register.hpp"
@@ -25,8 +26,8 @@ SensorParams coaxial_sensor() {
 }
 
 /// An organized pass: one line per row of ranges (bearing 0.01 rad apart), lines 0.01 rad apart
-/// in nod, amplitude 100 everywhere.
-Pass grid_pass(const std::vector<std::vector<float>>& rows) {
+/// in nod (or at `nods`), amplitude 100 everywhere.
+Pass grid_pass(const std::vector<std::vector<float>>& rows, const std::vector<float>& nods = {}) {
   Pass p;
   for (std::size_t k = 0; k < rows.size(); ++k) {
     p.line_begin.push_back(p.range.size());
@@ -36,7 +37,7 @@ Pass grid_pass(const std::vector<std::vector<float>>& rows) {
       p.range.push_back(rows[k][b]);
       p.bearing.push_back(0.01f * static_cast<float>(b));
       p.amplitude.push_back(100.0f);
-      p.nod.push_back(0.01f * static_cast<float>(k));
+      p.nod.push_back(nods.empty() ? 0.01f * static_cast<float>(k) : nods[k]);
       p.stamp.push_back(1e-2 * static_cast<double>(k) + 1e-4 * static_cast<double>(b));
     }
   }
@@ -571,4 +572,94 @@ TEST(RejectMixedPixels, RealKurt3DScanLosesItsVeilPointsAndKeepsItsFloorAndCeili
   ASSERT_GT(planar, 5000u);
   EXPECT_GE(static_cast<double>(isolated_removed), 0.6 * static_cast<double>(isolated));
   EXPECT_LE(static_cast<double>(planar_removed), 0.01 * static_cast<double>(planar));  // the 1 % budget
+}
+
+namespace {
+/// Lines [from, to) of a registered pass, as a streamed window holds them.
+Pass lines_of(const Pass& p, std::size_t from, std::size_t to) {
+  Pass w;
+  w.organized = true;
+  const std::size_t b = p.line_begin[from], e = p.line_begin[to];
+  const auto cut = [&](const auto& src, auto& dst) {
+    if (src.size() == p.size()) dst.assign(src.begin() + static_cast<long>(b), src.begin() + static_cast<long>(e));
+  };
+  cut(p.line, w.line);
+  cut(p.beam, w.beam);
+  cut(p.range, w.range);
+  cut(p.bearing, w.bearing);
+  cut(p.amplitude, w.amplitude);
+  cut(p.nod, w.nod);
+  cut(p.stamp, w.stamp);
+  cut(p.label, w.label);
+  cut(p.flags, w.flags);
+  cut(p.range_cal, w.range_cal);
+  cut(p.nod_at_return, w.nod_at_return);
+  cut(p.x, w.x);
+  cut(p.y, w.y);
+  cut(p.z, w.z);
+  cut(p.ox, w.ox);
+  cut(p.oy, w.oy);
+  cut(p.oz, w.oz);
+  for (std::size_t k = from; k <= to; ++k) w.line_begin.push_back(p.line_begin[k] - b);
+  return w;
+}
+}  // namespace
+
+TEST(RejectMixedPixels, RoundsAcrossLinesFollowTheLocalNodStepAndAWindowDecidesAsTheWholePass) {
+  // A near surface (5 m) over a far one (10 m) with ramps of mixtures between them across lines,
+  // in columns of different ramp lengths, scanned by a nod whose step changes from line to line
+  // (a uniform-distance profile, or one that speeds up and turns). The footprint (8 mrad) is
+  // narrower than the bearing step (10 mrad), so only the nod step can call for more rounds.
+  // Slow in the first half (1.5-3 mrad a line: up to 5 lines per footprint), fast in the second
+  // (10-14 mrad: less than one): the pass's mean step says one round everywhere, the local step
+  // two more in the first half and none in the second.
+  const std::vector<double> slow = {0.002, 0.0015, 0.003, 0.0025}, fast = {0.012, 0.010, 0.014};
+  std::vector<std::vector<float>> rows;
+  std::vector<float> nods;
+  double nod = 0.0;
+  for (int k = 0; k < 80; ++k) {
+    std::vector<float> row(21);
+    for (int b = 0; b < 21; ++b) {
+      const int ramp = 1 + b % 5;            // mixtures in the ramp of this column
+      const int at = 10 + (k / 40) * 30 + b % 3;  // where the ramp starts: two edges down the pass
+      const int into = (k % 40) - (at % 40);
+      row[static_cast<std::size_t>(b)] = into < 0 ? 5.0f : into >= ramp ? 10.0f : 5.0f + 5.0f * static_cast<float>(into + 1) / static_cast<float>(ramp + 1);
+    }
+    rows.push_back(row);
+    nods.push_back(static_cast<float>(nod));
+    nod += k < 40 ? slow[static_cast<std::size_t>(k) % slow.size()] : fast[static_cast<std::size_t>(k) % fast.size()];
+  }
+  const Pass p = grid_pass(rows, nods);
+  SensorParams s = coaxial_sensor();
+  s.beam_divergence = 0.008;
+  const auto flagged = [](const Pass& q) {
+    return static_cast<std::size_t>(std::count(q.label.begin(), q.label.end(), Label::kMixedPixel));
+  };
+  Pass batch = p;
+  reject_mixed_pixels(batch, MixedPixelParams{}, s);
+  // The same without a footprint: no round past the first.
+  SensorParams pencil = s;
+  pencil.beam_divergence = 1e-9;
+  Pass one_round = p;
+  reject_mixed_pixels(one_round, MixedPixelParams{}, pencil);
+  std::printf("ramps under a changing nod: %zu flagged with the rounds, %zu in one round\n", flagged(batch), flagged(one_round));
+  EXPECT_GT(flagged(batch), flagged(one_round));
+  // Each line as a streamed window labels it: the stage's reach on each side.
+  PipelineConfig cfg;
+  cfg.sensor = s;
+  RunContext ctx;
+  ctx.config = &cfg;
+  const auto stage = reject_mixed_pixels_stage_info().create(StageConfig{"reject_mixed_pixels", "reject_mixed_pixels", "test", {}}, ctx);
+  const std::size_t reach = static_cast<std::size_t>(stage->reach());
+  ASSERT_GT(reach, 8u);
+  std::size_t differ = 0;
+  for (std::size_t k = 0; k < p.line_count(); ++k) {
+    const std::size_t from = k >= reach ? k - reach : 0, to = std::min(p.line_count(), k + reach + 1);
+    Pass w = lines_of(p, from, to);
+    StageReport report;
+    stage->label(w, report);
+    for (std::size_t i = p.line_begin[k]; i < p.line_begin[k + 1]; ++i)
+      differ += w.label[i - p.line_begin[from]] != batch.label[i];
+  }
+  EXPECT_EQ(differ, 0u);
 }
