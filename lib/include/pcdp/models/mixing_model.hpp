@@ -47,8 +47,8 @@ double range_on_line(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, 
 /// Range along the ray from `origin` in unit direction `dir` to the plane through `point` with
 /// unit normal `normal` (the plane of a 2-D patch of returns: two along one scan direction, two
 /// across). Unlike range_on_line it needs no third beam in the fan of the first two, so it
-/// predicts across lines as well as along them. NaN when the ray runs within about 0.006 degrees
-/// of the plane (seen exactly edge-on, a plane predicts nothing). Negative: the plane is behind.
+/// predicts across lines as well as along them. NaN when the ray runs within 1e-7 rad of the
+/// plane (seen exactly edge-on, a plane predicts nothing). Negative: the plane is behind.
 double range_on_plane(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, const Eigen::Vector3d& point,
                       const Eigen::Vector3d& normal);
 
