@@ -111,33 +111,7 @@ std::vector<Pass> LineStream::finish(std::size_t upto, bool to_end) {
   }
   // Cut the finished lines out of the window.
   for (std::size_t k = next_out_; k <= upto; ++k) {
-    const std::size_t wl = k - from, b = w.line_begin[wl], e = w.line_begin[wl + 1];
-    Pass o;
-    o.index = w.index;
-    o.source = w.source;
-    o.organized = true;
-    o.line_begin = {0, e - b};
-    const auto cut = [&](const auto& src, auto& dst) {
-      if (src.size() == w.size()) dst.assign(src.begin() + static_cast<long>(b), src.begin() + static_cast<long>(e));
-    };
-    cut(w.line, o.line);
-    cut(w.beam, o.beam);
-    cut(w.range, o.range);
-    cut(w.bearing, o.bearing);
-    cut(w.amplitude, o.amplitude);
-    cut(w.nod, o.nod);
-    cut(w.stamp, o.stamp);
-    cut(w.label, o.label);
-    cut(w.flags, o.flags);
-    cut(w.range_cal, o.range_cal);
-    cut(w.nod_at_return, o.nod_at_return);
-    cut(w.x, o.x);
-    cut(w.y, o.y);
-    cut(w.z, o.z);
-    cut(w.ox, o.ox);
-    cut(w.oy, o.oy);
-    cut(w.oz, o.oz);
-    if (w.cov.size() == 6 * w.size()) o.cov.assign(w.cov.begin() + static_cast<long>(6 * b), w.cov.begin() + static_cast<long>(6 * e));
+    Pass o = lines_of(w, k - from, k - from + 1);
     out.push_back(std::move(o));
   }
   next_out_ = upto + 1;

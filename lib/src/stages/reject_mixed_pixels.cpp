@@ -435,12 +435,24 @@ void mark_spikes_off_surface(const ReturnsView& v, const std::vector<std::size_t
 }  // namespace
 
 namespace {
-/// One round of the tests over the returns still kept; labels what it finds.
+/// The arrays one round fills, kept between rounds so that a later round allocates nothing.
+struct RoundScratch {
+  std::vector<char> usable, along, across, smooth_along, smooth_across, spike, spike_off;
+  std::vector<float> behind_r, behind_a;  // the surface behind each spike (its flanks along the line)
+  std::vector<char> line_tested, stretch_tested;
+  std::vector<std::size_t> seq;
+};
+
+/// One round of the tests over the returns still kept; labels what it finds. A later round tests
+/// only the returns `focused` lists (in pass order; `focus` is the same as a mask) and reads
+/// only the lines and, across lines, the stretches of a column that hold one.
 /// The returns it labels are appended to `labelled` if given.
-std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor, const PoseSigma& pose_sigma, const char* focus,
+std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor, const PoseSigma& pose_sigma,
+                       RoundScratch& sc, const char* focus = nullptr, const std::vector<std::size_t>* focused = nullptr,
                        std::vector<std::size_t>* labelled = nullptr) {
   const std::size_t n = pass.size();  // registered: checked by reject_mixed_pixels
-  std::vector<char> usable(n);
+  std::vector<char>& usable = sc.usable;
+  usable.resize(n);
   for (std::size_t i = 0; i < n; ++i) usable[i] = pass.is_kept(i) && std::isfinite(pass.x[i]);
   ReturnsView v{n, pass.x.data(), pass.y.data(), pass.z.data(), pass.ox.data(), pass.oy.data(), pass.oz.data(),
                 pass.range_cal.data(), pass.amplitude.data(), usable.data()};
@@ -451,8 +463,11 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
   // Candidates along and across lines (2: strong edge, 1: weak edge), and where each return lies
   // smoothly on a surface in each direction. A weak-edge candidate that is smooth in the other
   // direction is grazing ground, not a veil.
-  std::vector<char> along(n, 0), across(n, 0), smooth_along(n, 0), smooth_across(n, 0), spike(n, 0), spike_off(n, 0);
-  std::vector<float> behind_r, behind_a;  // the surface behind each spike (its flanks along the line)
+  for (std::vector<char>* a : {&sc.along, &sc.across, &sc.smooth_along, &sc.smooth_across, &sc.spike, &sc.spike_off})
+    a->assign(n, 0);
+  std::vector<char> &along = sc.along, &across = sc.across, &smooth_along = sc.smooth_along,
+                    &smooth_across = sc.smooth_across, &spike = sc.spike, &spike_off = sc.spike_off;
+  std::vector<float> &behind_r = sc.behind_r, &behind_a = sc.behind_a;
   if (p.spikes) {
     behind_r.assign(n, NAN);
     behind_a.assign(n, NAN);
@@ -463,20 +478,17 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
   if (organized) {
     v.width = pass.line_begin[1] - pass.line_begin[0];
   }
-  // With a focus, the returns to test, and the lines holding one (a later round reads only those
-  // lines and, across lines, only the stretches of a column that hold one).
-  std::vector<std::size_t> tested;
-  std::vector<char> line_tested;
+  // With a focus, the lines holding a return to test.
+  std::vector<char>& line_tested = sc.line_tested;
   if (focus) {
     line_tested.assign(pass.line_count(), 0);
-    for (std::size_t k = 0; k < pass.line_count(); ++k)
-      for (std::size_t i = pass.line_begin[k]; i < pass.line_begin[k + 1]; ++i)
-        if (focus[i]) {
-          tested.push_back(i);
-          line_tested[k] = 1;
-        }
+    std::size_t k = 0;
+    for (const std::size_t i : *focused) {  // in pass order
+      while (i >= pass.line_begin[k + 1]) ++k;
+      line_tested[k] = 1;
+    }
   }
-  std::vector<std::size_t> seq;
+  std::vector<std::size_t>& seq = sc.seq;
   for (std::size_t k = 0; k < pass.line_count(); ++k) {
     if (focus && !line_tested[k]) continue;
     seq.clear();
@@ -498,11 +510,11 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
       if ((nod_of(k) - nod_of(k - 1)) * (nod_of(k - 1) - nod_of(k - 2)) < 0) sweep_begin.push_back(k);
     sweep_begin.push_back(pass.line_count());
     const std::size_t sweeps = sweep_begin.size() - 1;
-    std::vector<char> stretch_tested;  // [sweep * width + column]
+    std::vector<char>& stretch_tested = sc.stretch_tested;  // [sweep * width + column]
     if (focus) {
       stretch_tested.assign(sweeps * v.width, 0);
       std::size_t s = 0;
-      for (const std::size_t i : tested) {  // in line order
+      for (const std::size_t i : *focused) {  // in pass order
         while (i >= pass.line_begin[sweep_begin[s + 1]]) ++s;
         stretch_tested[s * v.width + (i - pass.line_begin[sweep_begin[s]]) % v.width] = 1;
       }
@@ -527,7 +539,7 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
     }
   };
   if (focus)
-    for (const std::size_t i : tested) verdict(i);
+    for (const std::size_t i : *focused) verdict(i);
   else
     for (std::size_t i = 0; i < n; ++i) verdict(i);
   return count;
@@ -571,9 +583,10 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
   const int along = extra_rounds(pass, sensor);
   const bool more_across = p.across_lines && pass.line_count() > 2 && sensor.beam_divergence > 0;
   const int rounds = more_across ? kMaxExtraRounds : along;
-  if (rounds == 0) return mark_round(pass, p, sensor, pose_sigma, nullptr);
+  RoundScratch scratch;
+  if (rounds == 0) return mark_round(pass, p, sensor, pose_sigma, scratch);
   std::vector<std::size_t> found;  // labelled in the round before
-  std::size_t count = mark_round(pass, p, sensor, pose_sigma, nullptr, &found);
+  std::size_t count = mark_round(pass, p, sensor, pose_sigma, scratch, nullptr, nullptr, &found);
   // Where each return sits in its line, and the lines' width if they are all alike (organized:
   // the same beam on the next line is `width` returns on).
   const std::size_t n = pass.size();
@@ -618,8 +631,9 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const Sen
       }
     }
     if (focused.empty()) break;
+    std::sort(focused.begin(), focused.end());
     found.clear();
-    count += mark_round(pass, later, sensor, pose_sigma, focus.data(), &found);
+    count += mark_round(pass, later, sensor, pose_sigma, scratch, focus.data(), &focused, &found);
   }
   return count;
 }

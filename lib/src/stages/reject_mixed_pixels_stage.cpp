@@ -21,7 +21,10 @@ class RejectMixedPixelsStage final : public Stage {
   // Across lines it looks `window` lines (kObjectReach for a spike's object) each way, plus one
   // to read a nod reversal at the last of them.
   int reach() const override {
-    if (!params_.across_lines) return 1;  // a side's 2-D patch: the lines before and after
+    // Without the tests across lines, a side's 2-D patch still reads whether the same beam on the
+    // lines before and after is usable, which each extra round reads after the round before has
+    // labelled those lines: one line, plus one per round.
+    if (!params_.across_lines) return 1 + kMaxExtraRounds;
     // Each extra round (runs of mixtures) reads its narrower window across the lines the round
     // before labelled (the nod reversals it also reads are raw data: no more lines).
     return std::max(params_.window, params_.spikes ? static_cast<int>(kObjectReach) : 0) + 1 +

@@ -574,37 +574,6 @@ TEST(RejectMixedPixels, RealKurt3DScanLosesItsVeilPointsAndKeepsItsFloorAndCeili
   EXPECT_LE(static_cast<double>(planar_removed), 0.01 * static_cast<double>(planar));  // the 1 % budget
 }
 
-namespace {
-/// Lines [from, to) of a registered pass, as a streamed window holds them.
-Pass lines_of(const Pass& p, std::size_t from, std::size_t to) {
-  Pass w;
-  w.organized = true;
-  const std::size_t b = p.line_begin[from], e = p.line_begin[to];
-  const auto cut = [&](const auto& src, auto& dst) {
-    if (src.size() == p.size()) dst.assign(src.begin() + static_cast<long>(b), src.begin() + static_cast<long>(e));
-  };
-  cut(p.line, w.line);
-  cut(p.beam, w.beam);
-  cut(p.range, w.range);
-  cut(p.bearing, w.bearing);
-  cut(p.amplitude, w.amplitude);
-  cut(p.nod, w.nod);
-  cut(p.stamp, w.stamp);
-  cut(p.label, w.label);
-  cut(p.flags, w.flags);
-  cut(p.range_cal, w.range_cal);
-  cut(p.nod_at_return, w.nod_at_return);
-  cut(p.x, w.x);
-  cut(p.y, w.y);
-  cut(p.z, w.z);
-  cut(p.ox, w.ox);
-  cut(p.oy, w.oy);
-  cut(p.oz, w.oz);
-  for (std::size_t k = from; k <= to; ++k) w.line_begin.push_back(p.line_begin[k] - b);
-  return w;
-}
-}  // namespace
-
 TEST(RejectMixedPixels, RoundsAcrossLinesFollowTheLocalNodStepAndAWindowDecidesAsTheWholePass) {
   // A near surface (5 m) over a far one (10 m) with ramps of mixtures between them across lines,
   // in columns of different ramp lengths, scanned by a nod whose step changes from line to line
@@ -632,9 +601,6 @@ TEST(RejectMixedPixels, RoundsAcrossLinesFollowTheLocalNodStepAndAWindowDecidesA
   const Pass p = grid_pass(rows, nods);
   SensorParams s = coaxial_sensor();
   s.beam_divergence = 0.008;
-  const auto flagged = [](const Pass& q) {
-    return static_cast<std::size_t>(std::count(q.label.begin(), q.label.end(), Label::kMixedPixel));
-  };
   Pass batch = p;
   reject_mixed_pixels(batch, MixedPixelParams{}, s);
   // The same without a footprint: no round past the first.

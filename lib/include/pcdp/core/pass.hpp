@@ -50,6 +50,11 @@ struct Pass {
   bool is_kept(std::size_t i) const { return label[i] == Label::kKept; }
 };
 
+/// Lines [from, to) of a pass as a pass of their own (as a streamed window or a finished line
+/// holds them): every per-return column the pass holds, raw and derived, cut to those lines; the
+/// pass's index, source and organization carried over. Requires from <= to <= line_count().
+Pass lines_of(const Pass& p, std::size_t from, std::size_t to);
+
 // Reading a pass from a PCD file (read_pass, check_pass_header): pcdp/io/pass_file.hpp.
 
 }  // namespace pcdp
