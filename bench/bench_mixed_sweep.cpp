@@ -38,9 +38,10 @@
 // Usage: pcdp_mixed_sweep [--set tuning|heldout] [--index N]... [--json FILE] [--misses K] [--rank recall|f1|valid]
 //                         [--require-recall R] [--require-valid-rejected PCT] [--require-occlusion-recall R]
 //                         [--require-phantom-cells N] [--dump-misses K]
-// --dump-misses K prints every K-th miss: its range, the lit depths, its near share and amplitude,
-// then range, truth (V valid, M mixed, O occlusion, L low amplitude, N none) and label initial of
-// its in-line neighbours (4 each side) and across lines (2 each side).
+// --dump-misses K prints every K-th miss and every K-th valid return rejected as a mixed pixel
+// ("false <object>"): its range, the lit depths, its near share and amplitude, then range, truth
+// (V valid, M mixed, O occlusion, L low amplitude, N none), label initial and amplitude of its
+// in-line neighbours (4 each side) and across lines (2 each side, with their nod angles).
 // The --require options check the pooled numbers (exit 1 naming each one missed): CI runs both sets
 // with a margin below today's numbers (bench/CMakeLists.txt), so a regression fails the build.
 #include <algorithm>
@@ -296,6 +297,29 @@ Result run_setting(const SweepSetting& st) {
         ++res.phantom_points[label_name(sp.truth[i])];
     }
     const std::size_t nb = static_cast<std::size_t>(c.scanner.beams);
+    // One return with its neighbours along its line and across lines: range, truth, label, amplitude.
+    const auto dump = [&](const char* what, std::size_t i) {
+      const sim::BeamFootprint& f = sp.footprint[i];
+      const std::size_t b = i % nb;
+      std::printf("%s r=%.3f near %.3f far %.3f share %.2f amp %.0f |", what, p.range[i], f.near, f.far,
+                  f.near_power_share, p.amplitude[i]);
+      for (long d = -4; d <= 4; ++d) {
+        const long j = static_cast<long>(i) + d;
+        if (static_cast<long>(b) + d < 0 || static_cast<long>(b) + d >= static_cast<long>(nb)) continue;
+        const std::size_t u = static_cast<std::size_t>(j);
+        std::printf(" %.3f%c%c%.0f", p.range_cal[u], "VNOMRXLPI"[static_cast<int>(sp.truth[u])], label_name(p.label[u])[0],
+                    p.amplitude[u]);
+      }
+      std::printf(" | across:");
+      for (long d = -2; d <= 2; ++d) {
+        const long j = static_cast<long>(i) + d * static_cast<long>(nb);
+        if (j < 0 || j >= static_cast<long>(p.size())) continue;
+        const std::size_t u = static_cast<std::size_t>(j);
+        std::printf(" %.3f%c%c%.0f@%.4f", p.range_cal[u], "VNOMRXLPI"[static_cast<int>(sp.truth[u])],
+                    label_name(p.label[u])[0], p.amplitude[u], p.nod[u]);
+      }
+      std::printf("\n");
+    };
     for (std::size_t i = 0; i < p.size(); ++i) {
       ++res.returns;
       const Label t = sp.truth[i], l = p.label[i];
@@ -316,23 +340,7 @@ Result run_setting(const SweepSetting& st) {
         if (b + 1 < nb) din = std::max(din, dev(i + 1));
         if (i >= nb) dac = std::max(dac, dev(i - nb));
         if (i + nb < p.size()) dac = std::max(dac, dev(i + nb));
-        if (g_dump_every > 0 && (res.misses.size() % static_cast<std::size_t>(g_dump_every)) == 0) {
-          std::printf("miss r=%.3f near %.3f far %.3f share %.2f amp %.0f |", ri, f.near, f.far, f.near_power_share, p.amplitude[i]);
-          for (long d = -4; d <= 4; ++d) {
-            const long j = static_cast<long>(i) + d;
-            if (static_cast<long>(b) + d < 0 || static_cast<long>(b) + d >= static_cast<long>(nb)) continue;
-            const std::size_t u = static_cast<std::size_t>(j);
-            std::printf(" %.3f%c%c%.0f", p.range_cal[u], "VNOMRXLPI"[static_cast<int>(sp.truth[u])], label_name(p.label[u])[0], p.amplitude[u]);
-          }
-          std::printf(" | across:");
-          for (long d = -2; d <= 2; ++d) {
-            const long j = static_cast<long>(i) + d * static_cast<long>(nb);
-            if (j < 0 || j >= static_cast<long>(p.size())) continue;
-            const std::size_t u = static_cast<std::size_t>(j);
-            std::printf(" %.3f%c%c", p.range_cal[u], "VNOMRXLPI"[static_cast<int>(sp.truth[u])], label_name(p.label[u])[0]);
-          }
-          std::printf("\n");
-        }
+        if (g_dump_every > 0 && (res.misses.size() % static_cast<std::size_t>(g_dump_every)) == 0) dump("miss", i);
         res.misses.push_back({ri, f.far - f.near, din, dac, f.near_power_share, f.near_reflectivity, f.far_reflectivity,
                               st.kind_of(f.near_object), st.kind_of(f.far_object)});
       } else if (t == Label::kKept && l != Label::kNoReturn && l != Label::kOutOfRange && l != Label::kNoPose) {
@@ -344,6 +352,8 @@ Result run_setting(const SweepSetting& st) {
             const sim::BeamFootprint& f = sp.footprint[i];
             const std::string near = st.kind_of(f.near_object), far = st.kind_of(f.far_object);
             ++res.false_alarms[f.near_object == f.far_object ? near + " only" : near + " > " + far + " (within 4 cm)"];
+            if (g_dump_every > 0 && (res.valid_rejected_mixed % static_cast<std::size_t>(g_dump_every)) == 0)
+              dump(("false " + near).c_str(), i);
           }
         }
       } else if (t == Label::kOcclusion) {
@@ -539,6 +549,7 @@ int main(int argc, char** argv) {
                    "usage: %s [--set tuning|heldout] [--index N]... [--json FILE] [--misses K] [--rank recall|f1|valid]\n"
                    "          [--require-recall R] [--require-valid-rejected PCT] [--require-occlusion-recall R] [--require-phantom-cells N]\n"
                    "          [--dump-misses K]\n"
+                   "  --dump-misses K: print every K-th miss and every K-th valid return rejected, with neighbours\n"
                    "  --misses K: analyse the misses of the K worst settings by --rank (default 3, recall)\n"
                    "  tuning: settings 0-23; heldout: 1000-1015 (never used for tuning)\n",
                    argv[0]);
