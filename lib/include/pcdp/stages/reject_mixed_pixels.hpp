@@ -66,15 +66,16 @@ namespace pcdp {
 
 struct Pass;
 
+/// The stage's parameters. The pipeline options (reject_mixed_pixels_options, docs/stages.md) set
+/// the first group; the second holds the tests' dimensionless thresholds, fixed for pipelines (no
+/// sensor property sets them, and retuning them one by one did not generalize:
+/// docs/mixed_pixels.md, Limits) and settable here by library callers only.
 struct MixedPixelParams {
+  // Pipeline options.
   int window = 8;                    ///< returns searched on each side
   double jump_min = 0.1;             ///< m
   double jump_ratio = 0.015;
   double range_tolerance = 0.01;     ///< m
-  double range_tolerance_ratio = 0.002;
-  double max_angle = 0.9;            ///< rad (52 deg)
-  double edge_factor = 1.5;          ///< strong edge: per-step change across the return vs within each side
-  double weak_edge_factor = 0.8;     ///< weak edge: flagged only if not smooth in the other direction
   double amplitude_ratio = 0.3;
   double amplitude_slack = 8.0;      ///< amplitude units
   bool across_lines = true;
@@ -82,6 +83,11 @@ struct MixedPixelParams {
   bool one_sided = true;
   bool spikes = true;                ///< spikes in front of a surface, off their neighbours across lines
   int spike_width = 3;               ///< returns: the widest run along a line taken for a spike
+  // Library only.
+  double range_tolerance_ratio = 0.002;  ///< the tolerance's part proportional to the range
+  double max_angle = 0.9;            ///< rad (52 deg)
+  double edge_factor = 1.5;          ///< strong edge: per-step change across the return vs within each side
+  double weak_edge_factor = 0.8;     ///< weak edge: flagged only if not smooth in the other direction (<= edge_factor)
   double spike_dim_ratio = 0.9;      ///< a spike flat across lines is a mixture below this x its object's brightest return (0: off)
   int max_span = 6;                  ///< steps between the two sides' nearest neighbours
 };
