@@ -15,6 +15,7 @@ Pass lines_of(const Pass& p, std::size_t from, std::size_t to) {
   w.index = p.index;
   w.source = p.source;
   w.organized = p.organized;
+  if (p.line_begin.empty()) return w;  // no lines: nothing to cut
   const std::size_t b = p.line_begin[from], e = p.line_begin[to], n = p.size();
   // A column is cut where it has one value per return (a stage may not have derived it yet).
   const auto cut = [&](const auto& src, auto& dst, std::size_t per = 1) {
@@ -29,6 +30,8 @@ Pass lines_of(const Pass& p, std::size_t from, std::size_t to) {
   cut(p.nod, w.nod);
   cut(p.stamp, w.stamp);
   for (const ExtraField& x : p.extra) {
+    if (x.data.size() != x.field.bytes() * n)
+      throw std::logic_error("lines_of: extra field '" + x.field.name + "' does not hold one value per return");
     ExtraField c{x.field, {}};
     cut(x.data, c.data, x.field.bytes());
     w.extra.push_back(std::move(c));

@@ -438,7 +438,9 @@ namespace {
 /// The arrays one round fills, kept between rounds so that a later round allocates nothing.
 struct RoundScratch {
   std::vector<char> usable, along, across, smooth_along, smooth_across, spike, spike_off;
-  std::vector<float> behind_r, behind_a;  // the surface behind each spike (its flanks along the line)
+  // The surface behind each spike (its flanks along the line); filled and read only when the
+  // round runs the spike tests (the first), so later rounds may leave it stale.
+  std::vector<float> behind_r, behind_a;
   std::vector<char> line_tested, stretch_tested;
   std::vector<std::size_t> seq;
 };

@@ -1,7 +1,6 @@
 // Cutting lines out of a pass (lines_of), as the line stream and window tests do.
 #include <gtest/gtest.h>
 
-#include <cmath>
 #include <stdexcept>
 
 #include "pcdp/core/pass.hpp"
@@ -75,4 +74,10 @@ TEST(Pass, LinesOfCutsEveryColumnItHoldsToThoseLines) {
   EXPECT_EQ(none.line_count(), 0u);
   EXPECT_THROW(lines_of(p, 2, 4), std::out_of_range);
   EXPECT_THROW(lines_of(p, 2, 1), std::out_of_range);
+  // A pass with no lines at all, and an extra field of the wrong size.
+  EXPECT_EQ(lines_of(Pass{}, 0, 0).line_count(), 0u);
+  EXPECT_THROW(lines_of(Pass{}, 0, 1), std::out_of_range);
+  Pass bad = p;
+  bad.extra[0].data.pop_back();
+  EXPECT_THROW(lines_of(bad, 0, 1), std::logic_error);
 }
