@@ -65,6 +65,9 @@ OptionValues validate_block(const Context& ctx, const YAML::Node& block, const O
       if (skip.count(key)) continue;
       const std::string full = key_prefix.empty() ? key : key_prefix + "." + key;
       auto it = std::find_if(schema.begin(), schema.end(), [&](const OptionSpec& s) { return s.name == key; });
+      for (const auto& [name, what_now] : schema.retired)
+        if (it == schema.end() && name == key)
+          fail(ctx.where(full, node), what + ": '" + key + "' is no longer an option: " + what_now);
       if (it == schema.end())
         fail(ctx.where(full, node), what + ": unknown option '" + key + "'" + did_you_mean(key, names) +
                                         "; known options: " + [&] {

@@ -296,18 +296,22 @@ std::string describe_schema(const OptionSchema& schema) {
   std::size_t w = 6;
   for (const auto& s : schema) w = std::max(w, s.name.size());
   os << std::left << std::setw(static_cast<int>(w) + 2) << "option" << std::setw(8) << "type"
-     << std::setw(14) << "default" << std::setw(20) << "bounds" << std::setw(7) << "unit"
+     << std::setw(14) << "default" << std::setw(20) << "bounds" << std::setw(9) << "unit"
      << "description\n";
   for (const auto& s : schema) {
     std::string def = s.required ? "(required)" : format_value(s.default_value);
     if (def.empty()) def = "\"\"";
     os << std::left << std::setw(static_cast<int>(w) + 2) << s.name << std::setw(8)
        << option_type_name(s.type) << std::setw(14) << def << std::setw(20) << s.bounds_text()
-       << std::setw(7) << (s.unit.empty() ? "-" : s.unit) << s.doc << "\n";
+       << std::setw(9) << (s.unit.empty() ? "-" : s.unit) << s.doc << "\n";
   }
   if (!schema.rules.empty()) {
     os << "\nrules\n";
     for (const auto& r : schema.rules) os << "  " << r.formula << (r.why.empty() ? "" : ": " + r.why) << "\n";
+  }
+  if (!schema.retired.empty()) {
+    os << "\nno longer options (a configuration that sets one is refused)\n";
+    for (const auto& [name, what_now] : schema.retired) os << "  " << name << ": " << what_now << "\n";
   }
   return os.str();
 }
@@ -330,6 +334,10 @@ std::string schema_markdown(const OptionSchema& schema) {
   if (!schema.rules.empty()) {
     os << "\nRules:\n\n";
     for (const auto& r : schema.rules) os << "- `" << r.formula << "`" << (r.why.empty() ? "" : ": " + r.why) << "\n";
+  }
+  if (!schema.retired.empty()) {
+    os << "\nNo longer options (a configuration that sets one is refused):\n\n";
+    for (const auto& [name, what_now] : schema.retired) os << "- `" << name << "`: " << what_now << "\n";
   }
   return os.str();
 }

@@ -4,12 +4,17 @@
 // relative tolerance, angle, span, spike dimness) are fixed in the library, not pipeline options:
 // no sensor property sets them, and retuning them one by one did not generalize
 // (docs/mixed_pixels.md, Limits).
+#include <string>
+
 #include "pcdp/stages/reject_mixed_pixels.hpp"
 
 namespace pcdp {
 
 const Options<MixedPixelParams>& reject_mixed_pixels_options() {
   using P = MixedPixelParams;
+  const std::string kFixed = "the threshold is fixed at ",
+                    kWhy = " (no sensor property sets it; remove the key, or set MixedPixelParams from the library; "
+                           "docs/mixed_pixels.md)";
   static const auto o = Options<P>()
       .add("window", &P::window, bounds(1, 100), "returns", "how far to search on each side for neighbours")
       .add("jump_min", &P::jump_min, bounds(0, 100), "m", "smallest range step between the two sides that makes an edge")
@@ -21,7 +26,13 @@ const Options<MixedPixelParams>& reject_mixed_pixels_options() {
       .add("amplitude_saturation", &P::amplitude_saturation, bounds(0, 1e9), "", "amplitudes at or above this are clipped: the mixing test is skipped")
       .add("one_sided", &P::one_sided, "beside a void, flag returns that break from the trend of their one visible surface by more than the tolerance")
       .add("spikes", &P::spikes, "flag a run of returns a few beams wide in front of the surface on both sides along its line whose range changes across lines (a mixture with a thin object)")
-      .add("spike_width", &P::spike_width, bounds(1, 16), "returns", "widest run along a line the spike test takes for a thin object (or a mixture with one)");
+      .add("spike_width", &P::spike_width, bounds(1, 16), "returns", "widest run along a line the spike test takes for a thin object (or a mixture with one)")
+      .retire("edge_factor", kFixed + "1.5" + kWhy)
+      .retire("weak_edge_factor", kFixed + "0.8" + kWhy)
+      .retire("range_tolerance_ratio", kFixed + "0.002" + kWhy)
+      .retire("max_angle", kFixed + "0.9 rad" + kWhy)
+      .retire("max_span", kFixed + "6 returns" + kWhy)
+      .retire("spike_dim_ratio", kFixed + "0.9" + kWhy);
   return o;
 }
 

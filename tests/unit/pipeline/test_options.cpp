@@ -222,4 +222,12 @@ TEST(OptionsBinder, DeclaringAnOptionTwiceIsALogicError) {
   EXPECT_THROW(o.rule("nothing < declared", [](const P&) { return true; }, "why"), std::logic_error);
   EXPECT_THROW(o.add("count", &P::count, at_least(0), "", "unbounded"), std::logic_error);
   EXPECT_THROW(o.add("support", &P::support, bounds(-1, 10), "", "negative"), std::logic_error);
+  // A retired name is neither declared again nor retired twice.
+  EXPECT_THROW(o.retire("lo", "fixed"), std::logic_error);
+  o.retire("old", "fixed at 1");
+  EXPECT_THROW(o.retire("old", "again"), std::logic_error);
+  EXPECT_THROW(o.add("old", &P::hi, bounds(0, 1), "m", "back"), std::logic_error);
+  EXPECT_NE(describe_schema(o.schema()).find("no longer options (a configuration that sets one is refused)\n  old: fixed at 1\n"),
+            std::string::npos);
+  EXPECT_NE(schema_markdown(o.schema()).find("- `old`: fixed at 1\n"), std::string::npos);
 }

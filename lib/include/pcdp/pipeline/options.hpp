@@ -66,6 +66,9 @@ struct OptionRule {
 struct OptionSchema : std::vector<OptionSpec> {
   using std::vector<OptionSpec>::vector;
   std::vector<OptionRule> rules;
+  /// Names that were options and are no longer, each with what became of it: a configuration
+  /// that sets one is refused with that text rather than as an unknown option.
+  std::vector<std::pair<std::string, std::string>> retired;
   /// nullptr when not declared.
   const OptionSpec* find(const std::string& name) const;
 };
@@ -244,6 +247,16 @@ class Options {
     });
   }
 
+  /// A name that was an option and is no longer; `what_now` says what became of it ("fixed at
+  /// 1.5: ..."). Naming a declared or already retired option is a logic error.
+  Options& retire(std::string name, std::string what_now) {
+    if (schema_.find(name)) throw std::logic_error("option '" + name + "' is declared and retired");
+    for (const auto& r : schema_.retired)
+      if (r.first == name) throw std::logic_error("option '" + name + "' is retired twice");
+    schema_.retired.emplace_back(std::move(name), std::move(what_now));
+    return *this;
+  }
+
   /// A rule across options: `check(const P&)` returns true when kept (or an optional string:
   /// nullopt when kept, else what is wrong, appended to the message in parentheses). `formula`
   /// names the options it reads; `message`, if given, is the error text with "{key}" standing
@@ -287,6 +300,8 @@ class Options {
 
   Options& declare(OptionSpec spec, Setter set) {
     if (schema_.find(spec.name)) throw std::logic_error("option '" + spec.name + "' is declared twice");
+    for (const auto& r : schema_.retired)
+      if (r.first == spec.name) throw std::logic_error("option '" + spec.name + "' is retired and declared");
     const std::string n = spec.name;
     schema_.push_back(std::move(spec));
     setters_.push_back([n, set](const OptionValues& v, P& p) {
