@@ -26,6 +26,8 @@ const Options<SensorParams>& sensor_options() {
       .add("transceiver_angle_offset", &P::transceiver_angle_offset, bounds(-kPi, kPi), "rad",
            "offset added to the bearing for the mirror transceiver angle")
       .add("min_amplitude", &P::min_amplitude, at_least(0), "", "minimum detectable amplitude (sensor units)")
+      .add("amplitude_saturation", &P::amplitude_saturation, greater_than(0), "",
+           "amplitudes at or above this are clipped (sensor units; above the largest the sensor reports: none are): they say nothing about a mixture")
       .add("range_sigma", &P::range_sigma, bounds(0, 1), "m", "1-sigma range noise (Ye & Borenstein eq. 6)")
       .add("range_calibration.k", &P::range_k, bounds(0.5, 2).excluding_min(), "",
            "scale of the linear range calibration: true = k * measured + b")

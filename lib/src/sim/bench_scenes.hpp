@@ -27,6 +27,7 @@ inline SensorParams true_sensor(const sim::Scanner& s) {
   p.transceiver_angle = s.mirror ? TransceiverAngle::kMirror : TransceiverAngle::kFixed;
   p.transceiver_angle_offset = s.transceiver_angle_offset;
   p.min_amplitude = s.min_amplitude;
+  p.amplitude_saturation = 255.0;  // the simulator clamps amplitudes to 0..255
   p.range_sigma = s.range_sigma;
   p.range_k = 1.0 / s.range_n;
   p.range_b = -s.range_c / s.range_n;

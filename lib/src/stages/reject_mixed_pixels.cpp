@@ -575,8 +575,11 @@ int extra_rounds(const Pass& pass, const SensorParams& sensor) {
 }
 }  // namespace
 
-std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& p, const SensorParams& sensor, const PoseSigma& pose_sigma) {
+std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& params, const SensorParams& sensor,
+                                const PoseSigma& pose_sigma) {
   if (pass.range_cal.size() != pass.size()) throw std::logic_error("reject_mixed_pixels needs a registered pass");
+  MixedPixelParams p = params;
+  p.amplitude_saturation = sensor.amplitude_saturation;  // the clipping level is the sensor's
   // Along a line the footprint spans divergence / bearing step beams, the same on every line.
   // Across lines it spans divergence / the line step, which a nod that speeds up, slows down or
   // turns changes from line to line: past the rounds the bearing step allows, a return's rounds

@@ -23,7 +23,6 @@ const Options<MixedPixelParams>& reject_mixed_pixels_options() {
       .add("amplitude_ratio", &P::amplitude_ratio, bounds(0, 10), "", "a mixture may be this much brighter than predicted (relative)")
       .add("amplitude_slack", &P::amplitude_slack, bounds(0, 255), "", "... plus this (amplitude units)")
       .add("across_lines", &P::across_lines, "also look across scan lines (same beam)")
-      .add("amplitude_saturation", &P::amplitude_saturation, bounds(0, 1e9), "", "amplitudes at or above this are clipped: the mixing test is skipped")
       .add("one_sided", &P::one_sided, "beside a void, flag returns that break from the trend of their one visible surface by more than the tolerance")
       .add("spikes", &P::spikes, "flag a run of returns a few beams wide in front of the surface on both sides along its line whose range changes across lines (a mixture with a thin object)")
       .add("spike_width", &P::spike_width, bounds(1, 16), "returns", "widest run along a line the spike test takes for a thin object (or a mixture with one)")
@@ -32,7 +31,8 @@ const Options<MixedPixelParams>& reject_mixed_pixels_options() {
       .retire("range_tolerance_ratio", kFixed + "0.002" + kWhy)
       .retire("max_angle", kFixed + "0.9 rad" + kWhy)
       .retire("max_span", kFixed + "6 returns" + kWhy)
-      .retire("spike_dim_ratio", kFixed + "0.9" + kWhy);
+      .retire("spike_dim_ratio", kFixed + "0.9" + kWhy)
+      .retire("amplitude_saturation", "the clipping level is a property of the sensor: set sensor.amplitude_saturation");
   return o;
 }
 

@@ -96,6 +96,24 @@ TEST(RejectMixedPixels, AMuchBrighterReturnBetweenTheSurfacesIsARealObject) {
   EXPECT_EQ(reject_mixed_pixels(p, MixedPixelParams{}, coaxial_sensor()), 0u);
 }
 
+TEST(RejectMixedPixels, TheClippingLevelIsTheSensors) {
+  // A 16-bit amplitude channel: surfaces at 4000, a return between them at 20000 (five times
+  // the brightest mixture: a real object). Told that the sensor clips at 255, the stage takes
+  // every amplitude for clipped, cannot use them, and flags it; told the real level, it keeps it.
+  std::vector<float> r(10, 5.0f), a(10, 4000.0f);
+  r.push_back(7.5f);
+  a.push_back(20000.0f);
+  for (int i = 0; i < 10; ++i) {
+    r.push_back(10.0f);
+    a.push_back(4000.0f);
+  }
+  SensorParams s = coaxial_sensor();
+  Pass clipped = test::line_pass(r, a), wide = clipped;
+  EXPECT_EQ(reject_mixed_pixels(clipped, MixedPixelParams{}, s), 1u);
+  s.amplitude_saturation = 65535;
+  EXPECT_EQ(reject_mixed_pixels(wide, MixedPixelParams{}, s), 0u);
+}
+
 TEST(RejectMixedPixels, AThinPostAndASmoothSlopeAreKept) {
   std::vector<float> r(21, 10.0f), a(21, 60.0f);
   r[10] = 5.0f;  // a post one return wide

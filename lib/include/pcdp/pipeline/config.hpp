@@ -23,6 +23,7 @@ struct SensorParams {
   TransceiverAngle transceiver_angle = TransceiverAngle::kFixed;
   double transceiver_angle_offset = 0.0;
   double min_amplitude = 18.0;
+  double amplitude_saturation = 255.0;    ///< amplitudes at or above this are clipped (sensor units)
   double range_sigma = 0.0053;            ///< Ye & Borenstein eq. 6
   double range_k = 1.0;                   ///< true range = k * measured + b (Ye & Borenstein eqs. 1-3)
   double range_b = 0.0;

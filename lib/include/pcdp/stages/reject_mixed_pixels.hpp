@@ -79,11 +79,13 @@ struct MixedPixelParams {
   double amplitude_ratio = 0.3;
   double amplitude_slack = 8.0;      ///< amplitude units
   bool across_lines = true;
-  double amplitude_saturation = 255.0;  ///< clipped amplitudes say nothing about the mixture
   bool one_sided = true;
   bool spikes = true;                ///< spikes in front of a surface, off their neighbours across lines
   int spike_width = 3;               ///< returns: the widest run along a line taken for a spike
   // Library only.
+  /// Clipped amplitudes say nothing about the mixture. reject_mixed_pixels() takes it from
+  /// SensorParams::amplitude_saturation; the functions without a sensor read it here.
+  double amplitude_saturation = 255.0;
   double range_tolerance_ratio = 0.002;  ///< the tolerance's part proportional to the range
   double max_angle = 0.9;            ///< rad (52 deg)
   double edge_factor = 1.5;          ///< strong edge: per-step change across the return vs within each side
