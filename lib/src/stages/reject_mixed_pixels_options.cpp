@@ -1,9 +1,9 @@
 // The options of stage `reject_mixed_pixels`, declared once (name, member, bounds, unit, doc):
 // the schema behind validation, `describe` and docs/stages.md. The algorithm is in
-// reject_mixed_pixels.cpp. The tests' dimensionless thresholds (MixedPixelParams: edge factors,
-// relative tolerance, angle, span, spike dimness) are fixed in the library, not pipeline options:
-// no sensor property sets them, and retuning them one by one did not generalize
-// (docs/mixed_pixels.md, Limits).
+// reject_mixed_pixels.cpp. The search window and the tests' dimensionless thresholds
+// (MixedPixelParams: edge factors, relative tolerance, angle, span, spike dimness) are fixed in the
+// library, not pipeline options: no sensor property sets them, and retuning them one by one did not
+// generalize (docs/mixed_pixels.md, Limits).
 #include <string>
 
 #include "pcdp/stages/reject_mixed_pixels.hpp"
@@ -16,7 +16,6 @@ const Options<MixedPixelParams>& reject_mixed_pixels_options() {
                     kWhy = " (no sensor property sets it; remove the key, or set MixedPixelParams from the library; "
                            "docs/mixed_pixels.md)";
   static const auto o = Options<P>()
-      .add("window", &P::window, bounds(1, 100), "returns", "how far to search on each side for neighbours")
       .add("jump_min", &P::jump_min, bounds(0, 100), "m", "smallest range step between the two sides that makes an edge")
       .add("jump_ratio", &P::jump_ratio, bounds(0, 10), "", "... or this fraction of the near range, if larger")
       .add("range_tolerance", &P::range_tolerance, bounds(0, 10), "m", "a return within this (+ 0.2 % of its range + 3 range_sigma) of a surface is on it")
@@ -26,6 +25,9 @@ const Options<MixedPixelParams>& reject_mixed_pixels_options() {
       .add("one_sided", &P::one_sided, "beside a void, flag returns that break from the trend of their one visible surface by more than the tolerance")
       .add("spikes", &P::spikes, "flag a run of returns a few beams wide in front of the surface on both sides along its line whose range changes across lines (a mixture with a thin object)")
       .add("spike_width", &P::spike_width, bounds(1, 16), "returns", "widest run along a line the spike test takes for a thin object (or a mixture with one)")
+      .retire("window", "the search is fixed at 8 returns on each side (a side's three nearest usable returns, past "
+                        "dropouts; 4 and 16 measured alike on the sweep; remove the key, or set MixedPixelParams from the "
+                        "library; docs/mixed_pixels.md)")
       .retire("edge_factor", kFixed + "1.5" + kWhy)
       .retire("weak_edge_factor", kFixed + "0.8" + kWhy)
       .retire("range_tolerance_ratio", kFixed + "0.002" + kWhy)

@@ -148,33 +148,6 @@ TEST(Stream, LineByLineEqualsTheBatchRun) {
   }
 }
 
-TEST(Stream, ANarrowMixedPixelWindowStillWaitsForTheSpikesObject) {
-  // With window 2, reject_mixed_pixels looks 2 lines across for its edges but
-  // up to 4 for the object of a spike (the amplitude test); its reach is the
-  // larger, so streamed labels equal the batch run's.
-  const std::string dir = test::fresh_dir();
-  const std::string narrow = "window: 2";
-  const PipelineConfig cfg = streaming_config(dir + "/batch", true, narrow);
-  Pipeline::prepare(cfg).run();
-  const auto label =
-      test::column(io::read_pcd(dir + "/batch/returns.pcd"), "label");
-  LineStream s(streaming_config(dir + "/unused", true, narrow), 1);
-  // 2 + 1 lines for the edges alone (spikes off), 4 + 1 with the spikes.
-  const LineStream no_spikes(
-      streaming_config(dir + "/unused", true, "window: 2\n    spikes: false"),
-      1);
-  EXPECT_EQ(s.lines_ahead() - no_spikes.lines_ahead(), 2);
-  const Streamed st = stream_all(s, cfg.scans);
-  ASSERT_EQ(st.label.size(), label.size());
-  std::size_t label_diff = 0, mixed = 0;
-  for (std::size_t i = 0; i < label.size(); ++i) {
-    label_diff += static_cast<double>(st.label[i]) != label[i];
-    mixed += st.label[i] == Label::kMixedPixel;
-  }
-  EXPECT_EQ(label_diff, 0u);
-  EXPECT_GT(mixed, 100u);
-}
-
 TEST(Stream, AWideFootprintsExtraRoundsStreamAsTheBatchRun) {
   // With a footprint 2.5 beam steps wide (25 mrad on the sample's 10 mrad steps),
   // reject_mixed_pixels runs two more rounds, each looking 3 lines across at the
