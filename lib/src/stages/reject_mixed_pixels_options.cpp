@@ -20,7 +20,7 @@ const Options<MixedPixelParams>& reject_mixed_pixels_options() {
       .add("jump_ratio", &P::jump_ratio, bounds(0, 10), "", "... or this fraction of the near range, if larger")
       .add("range_tolerance", &P::range_tolerance, bounds(0, 10), "m", "a return within this (+ 0.2 % of its range + 3 range_sigma) of a surface is on it")
       .add("amplitude_ratio", &P::amplitude_ratio, bounds(0, 10), "", "a mixture may be this much brighter than predicted (relative)")
-      .add("amplitude_slack", &P::amplitude_slack, bounds(0, 255), "", "... plus this (amplitude units)")
+      .add("amplitude_slack", &P::amplitude_slack, at_least(0), "", "... plus this (sensor amplitude units, as sensor.min_amplitude)")
       .add("across_lines", &P::across_lines, "also look across scan lines (same beam)")
       .add("one_sided", &P::one_sided, "beside a void, flag returns that break from the trend of their one visible surface by more than the tolerance")
       .add("spikes", &P::spikes, "flag a run of returns a few beams wide in front of the surface on both sides along its line whose range changes across lines (a mixture with a thin object)")

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <random>
 
+#include "pcdp/core/errors.hpp"
 #include "pcdp/pipeline/config.hpp"
 #include "pcdp/pipeline/stage.hpp"
 #include "pcdp/core/pass.hpp"
@@ -112,6 +113,29 @@ TEST(RejectMixedPixels, TheClippingLevelIsTheSensors) {
   EXPECT_EQ(reject_mixed_pixels(clipped, MixedPixelParams{}, s), 1u);
   s.amplitude_saturation = 65535;
   EXPECT_EQ(reject_mixed_pixels(wide, MixedPixelParams{}, s), 0u);
+}
+
+TEST(RejectMixedPixels, TheAmplitudeSlackIsInTheSensorsUnits) {
+  // A 16-bit amplitude channel needs a slack in its own units, far above 255 (the bound of an
+  // 8-bit channel); a negative slack is still refused, naming the stage, the key and the rule.
+  const auto load = [](const std::string& slack) {
+    const std::string yaml = "input: {scans: x.pcd}\noutput_dir: out\nsensor: {amplitude_saturation: 65535}\n"
+                             "stages:\n  - type: register\n  - type: reject_mixed_pixels\n    amplitude_slack: " +
+                             slack + "\n";
+    LoadOptions o;
+    o.check_inputs = false;
+    const PipelineConfig c = load_pipeline_from_string(yaml, "p.yaml", "/", o);
+    return find_stage("reject_mixed_pixels")->create(c.stages[1], RunContext{&c, nullptr});
+  };
+  EXPECT_NE(load("2000"), nullptr);
+  try {
+    load("-1");
+    FAIL() << "a negative slack was accepted";
+  } catch (const ConfigError& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("amplitude_slack"), std::string::npos) << m;
+    EXPECT_NE(m.find("reject_mixed_pixels"), std::string::npos) << m;
+  }
 }
 
 TEST(RejectMixedPixels, AThinPostAndASmoothSlopeAreKept) {
