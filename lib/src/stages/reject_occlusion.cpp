@@ -14,7 +14,7 @@ const Options<OcclusionParams>& reject_occlusion_options() {
   static const auto o = Options<P>()
       .add("window", &P::window, bounds(1, 100), "returns", "how far to search on each side for stable neighbours")
       .add("stable", &P::stable, bounds(1, 10), "returns", "stable neighbours used on each side")
-      .add("amplitude_margin", &P::amplitude_margin, bounds(0, 255), "", "suspect below min_amplitude + this; surely weak below min_amplitude - this")
+      .add("amplitude_margin", &P::amplitude_margin, at_least(0), "", "suspect below min_amplitude + this; surely weak below min_amplitude - this (sensor amplitude units)")
       .add("jump_min", &P::jump_min, bounds(0, 100), "m", "smallest range step between the sides that makes an edge")
       .add("jump_ratio", &P::jump_ratio, bounds(0, 10), "", "... or this fraction of the near range, if larger")
       .add("range_tolerance", &P::range_tolerance, bounds(0, 100), "m", "a range within this of a side's extrapolation fits it")

@@ -197,6 +197,17 @@ stages:
   }
 }
 
+TEST(RejectOcclusion, TheAmplitudeMarginIsInTheSensorsUnits) {
+  // A 16-bit amplitude channel sets a margin in its own units, above 255.
+  LoadOptions o;
+  o.check_inputs = false;
+  const PipelineConfig c = load_pipeline_from_string(
+      "input: {scans: x.pcd}\noutput_dir: out\nsensor: {amplitude_saturation: 65535, min_amplitude: 1200}\n"
+      "stages:\n  - type: register\n  - type: reject_occlusion\n    amplitude_margin: 400\n",
+      "p.yaml", "/", o);
+  EXPECT_NE(find_stage("reject_occlusion")->create(c.stages[1], RunContext{&c, nullptr}), nullptr);
+}
+
 TEST(RejectOcclusion, UnmeasuredAmplitudeIsNeverJudgedWeak) {
   // A sensor without intensity (NaN amplitude, "not measured"): a range edge with a jump and a
   // far surface. Nothing may be labelled occlusion or low_amplitude on an amplitude it never had.
