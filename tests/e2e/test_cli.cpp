@@ -163,8 +163,9 @@ TEST(Cli, StagesAndDescribe) {
   EXPECT_TRUE(std::regex_search(res.out, std::regex(R"(range_max\s+double\s+30\s+\(0, inf\)\s+m\s)"))) << res.out;
   // Units as long as "returns" keep a space before the description; retired names say what
   // became of them.
+  res = run_cli({"describe", "reject_occlusion"});
+  EXPECT_TRUE(std::regex_search(res.out, std::regex(R"(window\s+int\s+6\s+\[1, 100\]\s+returns\s+how far)"))) << res.out;
   res = run_cli({"describe", "reject_mixed_pixels"});
-  EXPECT_TRUE(std::regex_search(res.out, std::regex(R"(spike_width\s+int\s+3\s+\[1, 16\]\s+returns\s+widest)"))) << res.out;
   EXPECT_TRUE(std::regex_search(res.out, std::regex(R"(\n  edge_factor: the threshold is fixed at 1\.5)"))) << res.out;
   res = run_cli({"describe", "regster"});
   EXPECT_EQ(res.exit_code, 2);

@@ -67,7 +67,7 @@ namespace pcdp {
 struct Pass;
 
 /// The stage's parameters. The pipeline options (reject_mixed_pixels_options, docs/stages.md) set
-/// the first group; the second holds the search window and the tests' dimensionless thresholds,
+/// the first group; the second holds the search window, the widest spike and the tests' dimensionless thresholds,
 /// fixed for pipelines (no sensor property sets them, and retuning them one by one did not generalize:
 /// docs/mixed_pixels.md, Limits) and settable here by library callers only.
 struct MixedPixelParams {
@@ -80,11 +80,13 @@ struct MixedPixelParams {
   bool across_lines = true;
   bool one_sided = true;
   bool spikes = true;                ///< spikes in front of a surface, off their neighbours across lines
-  int spike_width = 3;               ///< returns: the widest run along a line taken for a spike
   // Library only.
   /// Returns searched on each side for a side's three nearest usable returns (past dropouts and
   /// rejected returns). 4 and 16 gave the sweep's numbers within 0.001 of recall (docs/mixed_pixels.md).
   int window = 8;
+  /// Returns: the widest run along a line taken for a spike (a thin object one or two returns wide
+  /// and the mixtures on its sides).
+  int spike_width = 3;
   /// Clipped amplitudes say nothing about the mixture. reject_mixed_pixels() takes it from
   /// SensorParams::amplitude_saturation; the functions without a sensor read it here.
   double amplitude_saturation = 255.0;
