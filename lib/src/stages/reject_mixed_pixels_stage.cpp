@@ -18,8 +18,9 @@ class RejectMixedPixelsStage final : public Stage {
   RejectMixedPixelsStage(MixedPixelParams p, const RunContext& ctx)
       : params_(p), sensor_(ctx.config->sensor), pose_sigma_(ctx.poses ? ctx.config->pose_sigma : PoseSigma{0.0, 0.0}) {}
   StageKind kind() const override { return StageKind::kLabeller; }
-  // Across lines it looks `window` lines (kObjectReach for a spike's object) each way, plus one
-  // to read a nod reversal at the last of them.
+  // Across lines it looks MixedPixelParams::window lines (fixed at 8 for pipelines; kObjectReach
+  // for a spike's object, within it) each way, plus one to read a nod reversal at the last of
+  // them: 15 lines with the extra rounds. The max and min below keep it right for any window.
   int reach() const override {
     // Without the tests across lines, a side's 2-D patch still reads whether the same beam on the
     // lines before and after is usable, which each extra round reads after the round before has
