@@ -782,14 +782,20 @@ TEST(Rplidar, ImportKeepsEveryBeamAndTheTiltGeometryAndSomeVeilsAreRejected) {
   EXPECT_GT(static_cast<double>(up_rises) / static_cast<double>(up), 0.9);
   // Mixed pixels against SOURCE.md's crude along-scan candidates (a return isolated by > 0.2 m
   // inside a > 1 m jump between its two scan neighbours). Measured: 60 of 100 rejected (42 of the 63
-  // dim ones), 37 of 79,024 other returns: the stage is conservative on this sensor (a known
-  // limitation, docs/real_data.md); these floors catch a regression either way.
+  // dim ones), 38 of 79,024 other returns. The crude rule also counts returns beside an
+  // out-of-range reading (0.01-0.04 m, or beyond 10 m) and returns behind or in front of both
+  // neighbours, which no mixture of those two surfaces can be (its range lies between them). The
+  // veils proper, between two in-range neighbours by more than 0.2 m each: 19 of 21 rejected (11 of
+  // the 12 dim ones); the returns outside both: none of 15. docs/real_data.md. The floors catch
+  // a regression either way.
   const auto amp = test::column(t, "amplitude");
   std::size_t cand = 0, cand_rej = 0, dim = 0, dim_rej = 0, valid = 0, valid_rej = 0;
+  std::size_t veil = 0, veil_rej = 0, veil_dim = 0, veil_dim_rej = 0, outside = 0, outside_rej = 0;
+  const auto out_of_range = [&](std::size_t j) { return label[j] == static_cast<double>(Label::kOutOfRange); };
   for (std::size_t i = 1; i + 1 < label.size(); ++i) {
     if (line[i - 1] != line[i] || line[i + 1] != line[i] || beam[i - 1] + 1 != beam[i] || beam[i] + 1 != beam[i + 1]) continue;
     const double a = range[i - 1], b = range[i], c = range[i + 1];
-    if (!(a > 0) || !(b > 0) || !(c > 0) || label[i] == static_cast<double>(Label::kOutOfRange)) continue;
+    if (!(a > 0) || !(b > 0) || !(c > 0) || out_of_range(i)) continue;
     const bool is_cand = std::fabs(a - c) > 1.0 && std::fabs(b - a) > 0.2 && std::fabs(b - c) > 0.2;
     const bool rej = label[i] == static_cast<double>(Label::kMixedPixel);
     if (is_cand) {
@@ -799,16 +805,33 @@ TEST(Rplidar, ImportKeepsEveryBeamAndTheTiltGeometryAndSomeVeilsAreRejected) {
         ++dim;
         dim_rej += rej;
       }
+      if (!out_of_range(i - 1) && !out_of_range(i + 1)) {
+        if (b > std::min(a, c) && b < std::max(a, c)) {
+          ++veil;
+          veil_rej += rej;
+          veil_dim += amp[i] < 5;
+          veil_dim_rej += rej && amp[i] < 5;
+        } else {
+          ++outside;
+          outside_rej += rej;
+        }
+      }
     } else {
       ++valid;
       valid_rej += rej;
     }
   }
   std::cout << "RPLIDAR lidarServo: " << cand_rej << " of " << cand << " crude veil candidates rejected (" << dim_rej
-            << " of the " << dim << " dim ones, quality < 5); " << valid_rej
-            << " of " << valid << " other returns with a return on both sides rejected\n";
+            << " of the " << dim << " dim ones, quality < 5); between two in-range neighbours " << veil_rej << " of "
+            << veil << " (" << veil_dim_rej << " of the " << veil_dim << " dim ones), outside both " << outside_rej
+            << " of " << outside << "; " << valid_rej << " of " << valid
+            << " other returns with a return on both sides rejected\n";
   ASSERT_GT(cand, 30u);
   EXPECT_GE(static_cast<double>(cand_rej) / static_cast<double>(cand), 0.2);
+  ASSERT_GE(veil, 15u);
+  EXPECT_GE(static_cast<double>(veil_rej) / static_cast<double>(veil), 0.8);
+  EXPECT_GE(veil_dim_rej * 10, veil_dim * 8) << "the dim veils (quality < 5) are caught";
+  EXPECT_LE(outside_rej * 5, outside) << "a return outside both neighbours is no mixture of them";
   EXPECT_LT(static_cast<double>(valid_rej) / static_cast<double>(valid), 0.002);
 }
 

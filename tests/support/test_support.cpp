@@ -12,6 +12,7 @@
 #include "pcdp/core/errors.hpp"
 #include "pcdp/core/pass.hpp"
 #include "pcdp/io/pass_file.hpp"
+#include "pcdp/pipeline/config.hpp"
 #include "pcdp/stages/register.hpp"
 #include "pcdp_test_paths.hpp"
 
@@ -152,6 +153,18 @@ Pass line_pass(const std::vector<float>& ranges, const std::vector<float>& amps)
   p.flags.assign(n, 0);
   register_pass(p, RegisterParams{}, SensorParams{}, Eigen::Isometry3d::Identity(), nullptr);
   return p;
+}
+
+std::unique_ptr<Stage> stage_from_yaml(const std::string& type, const std::vector<std::string>& options,
+                                       const std::string& sensor) {
+  std::string yaml = "input: {scans: x.pcd}\noutput_dir: out\n";
+  if (!sensor.empty()) yaml += "sensor: " + sensor + "\n";
+  yaml += "stages:\n  - type: register\n  - type: " + type + "\n";
+  for (const auto& line : options) yaml += "    " + line + "\n";
+  LoadOptions o;
+  o.check_inputs = false;
+  const PipelineConfig c = load_pipeline_from_string(yaml, "p.yaml", "/", o);
+  return find_stage(type)->create(c.stages[1], RunContext{&c, nullptr});
 }
 
 }  // namespace pcdp::test

@@ -1,10 +1,12 @@
 // Helpers shared by the tests: temporary folders, running the CLI, reading outputs.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "pcdp/io/pcd.hpp"
+#include "pcdp/pipeline/stage.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
 
 namespace pcdp::test {
@@ -45,6 +47,12 @@ double median(std::vector<double> v);
 /// A pass of one scan line: the given ranges and amplitudes, bearings 0.01 rad apart, nod 0,
 /// registered with an identity pose and default sensor.
 Pass line_pass(const std::vector<float>& ranges, const std::vector<float>& amps);
+
+/// Stage `type` made from a pipeline `register` -> `type`, read from YAML by the real loader
+/// (inputs unchecked): `sensor` is the sensor block's flow mapping ("" for none), `options` the
+/// stage's option lines (each "key: value"). Throws the loader's or the stage's ConfigError.
+std::unique_ptr<Stage> stage_from_yaml(const std::string& type, const std::vector<std::string>& options,
+                                       const std::string& sensor = "");
 
 }  // namespace pcdp::test
 

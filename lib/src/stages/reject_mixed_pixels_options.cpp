@@ -12,9 +12,9 @@ namespace pcdp {
 
 const Options<MixedPixelParams>& reject_mixed_pixels_options() {
   using P = MixedPixelParams;
-  const std::string kFixed = "the threshold is fixed at ",
-                    kWhy = " (no sensor property sets it; remove the key, or set MixedPixelParams from the library; "
-                           "docs/mixed_pixels.md)";
+  // Every retired threshold's message ends alike: what to do instead, and where the reason is measured.
+  const std::string kTail = "; remove the key, or set MixedPixelParams from the library; docs/mixed_pixels.md)",
+                    kFixed = "the threshold is fixed at ", kWhy = " (no sensor property sets it" + kTail;
   static const auto o = Options<P>()
       .add("jump_min", &P::jump_min, bounds(0, 100), "m", "smallest range step between the two sides that makes an edge")
       .add("jump_ratio", &P::jump_ratio, bounds(0, 10), "", "... or this fraction of the near range, if larger")
@@ -24,13 +24,10 @@ const Options<MixedPixelParams>& reject_mixed_pixels_options() {
       .add("across_lines", &P::across_lines, "also look across scan lines (same beam)")
       .add("one_sided", &P::one_sided, "beside a void, flag returns that break from the trend of their one visible surface by more than the tolerance")
       .add("spikes", &P::spikes, "flag a run of one to three returns in front of the surface on both sides along its line whose range changes across lines (a mixture with a thin object)")
-      .retire("window", "the search is fixed at 8 returns on each side (a side's three nearest usable returns, past "
-                        "dropouts; 4 and 16 measured alike on the sweep; remove the key, or set MixedPixelParams from the "
-                        "library; docs/mixed_pixels.md)")
-      .retire("spike_width", "the widest spike is fixed at 3 returns along a line (a thin object one or two returns wide "
-                             "and the mixtures on its sides; 2 / 5 / 8 trade recall 0.866 / 0.868 / 0.869 against valid "
-                             "rejected 0.88 / 0.90 / 0.93 % on the sweep; remove the key, or set MixedPixelParams from the "
-                             "library; docs/mixed_pixels.md)")
+      .retire("window", "the search is fixed at 8 returns on each side (enough to reach a side's three nearest usable "
+                        "returns past dropouts" + kTail)
+      .retire("spike_width", "the widest spike is fixed at 3 returns along a line (a thin object one or two returns "
+                             "wide and the mixtures on its sides" + kTail)
       .retire("edge_factor", kFixed + "1.5" + kWhy)
       .retire("weak_edge_factor", kFixed + "0.8" + kWhy)
       .retire("range_tolerance_ratio", kFixed + "0.002" + kWhy)

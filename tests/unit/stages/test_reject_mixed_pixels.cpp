@@ -119,13 +119,7 @@ TEST(RejectMixedPixels, TheAmplitudeSlackIsInTheSensorsUnits) {
   // A 16-bit amplitude channel needs a slack in its own units, far above 255 (the bound of an
   // 8-bit channel); a negative slack is still refused, naming the stage, the key and the rule.
   const auto load = [](const std::string& slack) {
-    const std::string yaml = "input: {scans: x.pcd}\noutput_dir: out\nsensor: {amplitude_saturation: 65535}\n"
-                             "stages:\n  - type: register\n  - type: reject_mixed_pixels\n    amplitude_slack: " +
-                             slack + "\n";
-    LoadOptions o;
-    o.check_inputs = false;
-    const PipelineConfig c = load_pipeline_from_string(yaml, "p.yaml", "/", o);
-    return find_stage("reject_mixed_pixels")->create(c.stages[1], RunContext{&c, nullptr});
+    return test::stage_from_yaml("reject_mixed_pixels", {"amplitude_slack: " + slack}, "{amplitude_saturation: 65535}");
   };
   EXPECT_NE(load("2000"), nullptr);
   try {

@@ -177,20 +177,8 @@ TEST(RejectOcclusion, ADipAtAnEdgeIsOcclusionAndAWeakReturnElsewhereIsLowAmplitu
 }
 
 TEST(RejectOcclusion, OptionsAreValidatedTogether) {
-  const char* yaml = R"(
-input: {scans: x.pcd}
-output_dir: out
-stages:
-  - type: register
-  - type: reject_occlusion
-    window: 2
-    stable: 3
-)";
-  LoadOptions o;
-  o.check_inputs = false;
-  const PipelineConfig c = load_pipeline_from_string(yaml, "p.yaml", "/", o);
   try {
-    find_stage("reject_occlusion")->create(c.stages[1], RunContext{&c, nullptr});
+    test::stage_from_yaml("reject_occlusion", {"window: 2", "stable: 3"});
     FAIL();
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("option 'stable' = 3 must not exceed 'window' = 2"), std::string::npos) << e.what();
@@ -198,14 +186,13 @@ stages:
 }
 
 TEST(RejectOcclusion, TheAmplitudeMarginIsInTheSensorsUnits) {
-  // A 16-bit amplitude channel sets a margin in its own units, above 255.
-  LoadOptions o;
-  o.check_inputs = false;
-  const PipelineConfig c = load_pipeline_from_string(
-      "input: {scans: x.pcd}\noutput_dir: out\nsensor: {amplitude_saturation: 65535, min_amplitude: 1200}\n"
-      "stages:\n  - type: register\n  - type: reject_occlusion\n    amplitude_margin: 400\n",
-      "p.yaml", "/", o);
-  EXPECT_NE(find_stage("reject_occlusion")->create(c.stages[1], RunContext{&c, nullptr}), nullptr);
+  // A 16-bit amplitude channel sets a margin in its own units, above 255; a negative one is refused.
+  const auto load = [](const std::string& margin) {
+    return test::stage_from_yaml("reject_occlusion", {"amplitude_margin: " + margin},
+                                 "{amplitude_saturation: 65535, min_amplitude: 1200}");
+  };
+  EXPECT_NE(load("400"), nullptr);
+  EXPECT_THROW(load("-1"), ConfigError);
 }
 
 TEST(RejectOcclusion, UnmeasuredAmplitudeIsNeverJudgedWeak) {
