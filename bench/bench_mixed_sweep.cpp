@@ -37,7 +37,11 @@
 //
 // Usage: pcdp_mixed_sweep [--set tuning|heldout] [--index N]... [--json FILE] [--misses K] [--rank recall|f1|valid]
 //                         [--require-recall R] [--require-valid-rejected PCT] [--require-occlusion-recall R]
-//                         [--require-phantom-cells N] [--dump-misses K]
+//                         [--require-phantom-cells N] [--dump-misses K] [--param NAME=VALUE]...
+// --param NAME=VALUE (repeatable) runs the stage with one MixedPixelParams member changed from its
+// default, for the trades in docs/mixed_pixels.md: jump_min (metres, or "derived": 2 x
+// (range_tolerance + 3 sensor.range_sigma)), jump_ratio, range_tolerance, amplitude_ratio,
+// amplitude_slack, window, spike_width.
 // --dump-misses K prints every K-th miss and every K-th valid return rejected as a mixed pixel
 // ("false <object>"): its range, the lit depths, its near share and amplitude, then range, truth
 // (V valid, M mixed, O occlusion, L low amplitude, N none), label initial and amplitude of its
@@ -45,6 +49,7 @@
 // The --require options check the pooled numbers (exit 1 naming each one missed): CI runs both sets
 // with a margin below today's numbers (bench/CMakeLists.txt), so a regression fails the build.
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -69,7 +74,25 @@
 using namespace pcdp;
 
 namespace {
-int g_dump_every = 0;  ///< --dump-misses K: print every K-th miss with its neighbours
+int g_dump_every = 0;
+std::vector<std::pair<std::string, std::string>> g_params;  ///< --param NAME=VALUE
+
+/// The stage's parameters for a sensor: the defaults, with --param's changes.
+MixedPixelParams sweep_params(const SensorParams& sensor) {
+  MixedPixelParams p;
+  for (const auto& [name, value] : g_params) {
+    const double v = std::atof(value.c_str());
+    if (name == "jump_min") p.jump_min = value == "derived" ? -1 : v;
+    else if (name == "jump_ratio") p.jump_ratio = v;
+    else if (name == "range_tolerance") p.range_tolerance = v;
+    else if (name == "amplitude_ratio") p.amplitude_ratio = v;
+    else if (name == "amplitude_slack") p.amplitude_slack = v;
+    else if (name == "window") p.window = static_cast<int>(v);
+    else if (name == "spike_width") p.spike_width = static_cast<int>(v);
+  }
+  if (p.jump_min < 0) p.jump_min = 2 * (p.range_tolerance + 3 * sensor.range_sigma);
+  return p;
+}  ///< --dump-misses K: print every K-th miss with its neighbours
 constexpr double kPi = 3.14159265358979323846;
 
 struct SweepSetting {
@@ -235,6 +258,8 @@ struct Result {
   double elev_above = 0, elev_below = 0, seconds = 0;
   std::vector<Miss> misses;
   std::map<std::string, std::uint64_t> false_alarms;  ///< valid returns labelled mixed_pixel, by what the footprint lit
+  /// Returns labelled mixed_pixel by the evidence the stage gives (Pass::flags): {truth mixed, truth valid}.
+  std::map<std::string, std::array<std::uint64_t, 2>> evidence;
   double recall() const { return mixed ? double(mixed_rejected) / double(mixed) : 1.0; }
   double valid_rate() const { return valid ? double(valid_rejected) / double(valid) : 0.0; }
   double occ_recall() const { return occlusion ? double(occlusion_rejected) / double(occlusion) : 1.0; }
@@ -243,6 +268,27 @@ struct Result {
     return tp > 0 ? 2 * tp / (2 * tp + fp + fn) : 0.0;
   }
 };
+
+/// The evidence behind return i's mixed_pixel label, from its flags (Pass::flags): the direction
+/// (along its line, across lines, both, or a spike alone), whether beside a void or in a later
+/// round; for evidence across lines alone, whether the neighbouring lines' footprints touch this
+/// one's (the nod moved the beam by at most the divergence to the nearer of the two) or leave
+/// unsampled ground between them.
+std::string evidence_of(const Pass& p, std::size_t i, std::size_t nb, double divergence) {
+  const unsigned f = p.flags[i];
+  const bool al = f & kFlagMixedAlong, ac = f & kFlagMixedAcross;
+  std::string k = al && ac ? "along and across" : al ? "along" : ac ? "across" : "spike";
+  if (ac && !al) {
+    double step = INFINITY;
+    if (i >= nb) step = std::min(step, std::fabs(static_cast<double>(p.nod[i]) - p.nod[i - nb]));
+    if (i + nb < p.size()) step = std::min(step, std::fabs(static_cast<double>(p.nod[i + nb]) - p.nod[i]));
+    k += step > divergence ? ", lines apart" : ", footprints touch";
+  }
+  if (f & kFlagBesideVoid) k += ", beside a void";
+  if ((f & kFlagSpike) && (al || ac)) k += ", spike";
+  if (f & kFlagMixedRun) k += ", later round";
+  return k;
+}
 
 /// The lowest and highest true top surface over cell (ix, iy) grown by kCellMargin on each side
 /// (a point on a vertical face lands in the cell in front of it by its registration error):
@@ -288,7 +334,7 @@ Result run_setting(const SweepSetting& st) {
     reject_occlusion(p, OcclusionParams{}, st.sensor);
     std::vector<char> reaching(p.size());
     for (std::size_t i = 0; i < p.size(); ++i) reaching[i] = p.is_kept(i);
-    reject_mixed_pixels(p, MixedPixelParams{}, st.sensor, PoseSigma{});
+    reject_mixed_pixels(p, sweep_params(st.sensor), st.sensor, PoseSigma{});
     fuse_pass(grid, p, fep, st.sensor.range_sigma * st.sensor.range_sigma);
     filtered.push_back(p);
     for (std::size_t i = 0; i < p.size(); ++i) {
@@ -321,6 +367,9 @@ Result run_setting(const SweepSetting& st) {
       std::printf("\n");
     };
     for (std::size_t i = 0; i < p.size(); ++i) {
+      const bool truth_mixed = sp.truth[i] == Label::kMixedPixel, truth_valid = sp.truth[i] == Label::kKept;
+      if (p.label[i] == Label::kMixedPixel && (truth_mixed || truth_valid))
+        ++res.evidence[evidence_of(p, i, nb, st.sensor.beam_divergence)][truth_mixed ? 0 : 1];
       ++res.returns;
       const Label t = sp.truth[i], l = p.label[i];
       if (t == Label::kMixedPixel) {
@@ -422,6 +471,10 @@ Result pool(const std::vector<Result>& rs) {
     p.misses.insert(p.misses.end(), r.misses.begin(), r.misses.end());
     for (const auto& [k, n] : r.phantom_points) p.phantom_points[k] += n;
     for (const auto& [k, n] : r.false_alarms) p.false_alarms[k] += n;
+    for (const auto& [k, n] : r.evidence) {
+      p.evidence[k][0] += n[0];
+      p.evidence[k][1] += n[1];
+    }
   }
   return p;
 }
@@ -544,11 +597,23 @@ int main(int argc, char** argv) {
     else if (k == "--require-valid-rejected" && has) need_valid = number(argv[++a]);
     else if (k == "--require-occlusion-recall" && has) need_occlusion = number(argv[++a]);
     else if (k == "--require-phantom-cells" && has) need_phantom = static_cast<long>(number(argv[++a]));
-    else {
+    else if (k == "--param" && has && std::strchr(argv[a + 1], '=')) {
+      const std::string nv = argv[++a], name = nv.substr(0, nv.find('=')), value = nv.substr(nv.find('=') + 1);
+      static const std::vector<std::string> known = {"jump_min", "jump_ratio", "range_tolerance", "amplitude_ratio",
+                                                     "amplitude_slack", "window", "spike_width"};
+      if (std::find(known.begin(), known.end(), name) == known.end()) {
+        std::fprintf(stderr, "--param %s: unknown parameter (one of jump_min, jump_ratio, range_tolerance, "
+                             "amplitude_ratio, amplitude_slack, window, spike_width)\n", name.c_str());
+        return 2;
+      }
+      g_params.emplace_back(name, value);
+    } else {
       std::fprintf(stderr,
                    "usage: %s [--set tuning|heldout] [--index N]... [--json FILE] [--misses K] [--rank recall|f1|valid]\n"
                    "          [--require-recall R] [--require-valid-rejected PCT] [--require-occlusion-recall R] [--require-phantom-cells N]\n"
-                   "          [--dump-misses K]\n"
+                   "          [--dump-misses K] [--param NAME=VALUE]...\n"
+                   "  --param NAME=VALUE: one MixedPixelParams member changed (jump_min [m or derived], jump_ratio,\n"
+                   "                      range_tolerance, amplitude_ratio, amplitude_slack, window, spike_width)\n"
                    "  --dump-misses K: print every K-th miss and every K-th valid return rejected, with neighbours\n"
                    "  --misses K: analyse the misses of the K worst settings by --rank (default 3, recall)\n"
                    "  tuning: settings 0-23; heldout: 1000-1015 (never used for tuning)\n",
@@ -589,6 +654,15 @@ int main(int argc, char** argv) {
   });
   std::printf("\nmisses (truth mixed pixels kept), pooled and for the %d worst settings by %s:\n", worst, rank.c_str());
   print_misses(all);
+  {
+    // Which evidence labels the returns, against the truth: where the false alarms come from.
+    std::vector<std::pair<std::array<std::uint64_t, 2>, std::string>> ev;
+    for (const auto& [k, n] : all.evidence) ev.push_back({n, k});
+    std::sort(ev.begin(), ev.end(), [](const auto& a, const auto& b) { return a.first[0] + a.first[1] > b.first[0] + b.first[1]; });
+    std::printf("  returns labelled mixed_pixel, by the evidence (flags): mixed pixels found, valid returns rejected\n");
+    for (const auto& [n, k] : ev)
+      std::printf("    %-52s %7llu %7llu\n", k.c_str(), static_cast<unsigned long long>(n[0]), static_cast<unsigned long long>(n[1]));
+  }
   for (int k = 0; k < worst && k < static_cast<int>(order.size()); ++k) print_misses(*order[static_cast<std::size_t>(k)]);
   if (!json.empty()) {
     FILE* f = std::fopen(json.c_str(), "w");

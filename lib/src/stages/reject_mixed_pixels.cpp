@@ -222,7 +222,7 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
     const Nb* own = l_next != r_next ? (l_next ? &l : &r) : (l.count == 0) != (r.count == 0) ? (l.count ? &l : &r) : nullptr;
     const Nb* gap = own == &l ? &r : &l;
     if (p.one_sided && own && gap->beside_void && breaks_from_side(v, i, *own, *gap, tol, p)) {
-      mixed[i] = kStrongEdge;
+      mixed[i] = kBesideVoid;
       continue;
     }
     // Two-sided: each side needs a return; and one of them a second one, for its rate of change
@@ -534,8 +534,12 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
   }
   std::size_t count = 0;
   const auto verdict = [&](std::size_t i) {
-    if (is_mixed(along[i], smooth_across[i]) || is_mixed(across[i], smooth_along[i]) || spike_off[i]) {
+    const bool by_along = is_mixed(along[i], smooth_across[i]), by_across = is_mixed(across[i], smooth_along[i]);
+    if (by_along || by_across || spike_off[i]) {
       pass.label[i] = Label::kMixedPixel;
+      pass.flags[i] |= static_cast<std::uint8_t>((by_along ? kFlagMixedAlong : 0) | (by_across ? kFlagMixedAcross : 0) |
+          ((by_along && along[i] == kBesideVoid) || (by_across && across[i] == kBesideVoid) ? kFlagBesideVoid : 0) |
+          (spike_off[i] ? kFlagSpike : 0) | (focus ? kFlagMixedRun : 0));  // the evidence (docs/data_contract.md)
       ++count;
       if (labelled) labelled->push_back(i);
     }
@@ -578,13 +582,14 @@ int extra_rounds(const Pass& pass, const SensorParams& sensor) {
 std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& params, const SensorParams& sensor,
                                 const PoseSigma& pose_sigma) {
   if (pass.range_cal.size() != pass.size()) throw std::logic_error("reject_mixed_pixels needs a registered pass");
+  if (pass.flags.size() != pass.size()) pass.flags.assign(pass.size(), 0);
   MixedPixelParams p = params;
   p.amplitude_saturation = sensor.amplitude_saturation;  // the clipping level is the sensor's
   // Along a line the footprint spans divergence / bearing step beams, the same on every line.
   // Across lines it spans divergence / the line step, which a nod that speeds up, slows down or
-  // turns changes from line to line: past the rounds the bearing step allows, a return's rounds
-  // across lines are set by the nod step to the neighbouring line's same beam (read locally, so
-  // a streamed window decides as the whole pass does).
+  // turns changes from line to line: in every round, a return's neighbours across lines are
+  // tested again only where the nod step to them lets a run of that length fit in the footprint
+  // (read locally, so a streamed window decides as the whole pass does).
   const int along = extra_rounds(pass, sensor);
   const bool more_across = p.across_lines && pass.line_count() > 2 && sensor.beam_divergence > 0;
   const int rounds = more_across ? kMaxExtraRounds : along;
@@ -617,11 +622,10 @@ std::size_t reject_mixed_pixels(Pass& pass, const MixedPixelParams& params, cons
       focus[i] = 1;
       focused.push_back(i);
     };
-    // Past the rounds the bearing step allows, round + 1 more mixtures fit in the footprint
-    // across lines where the nod moved the beam by at most divergence / (round + 1) between the
-    // two lines (no move: no nod reading, nothing to say).
+    // Across lines, round + 1 more mixtures fit in the footprint only where the nod moved the beam
+    // by at most divergence / (round + 1) between the lines; farther apart the footprints do not
+    // overlap, the other line's return is in no run with this one and is not tested again.
     const auto deep = [&](std::size_t i, std::size_t j) {
-      if (round < along) return true;
       const double step = std::fabs(static_cast<double>(pass.nod[i]) - static_cast<double>(pass.nod[j]));
       return step > 0 && (round + 1) * step <= sensor.beam_divergence;
     };

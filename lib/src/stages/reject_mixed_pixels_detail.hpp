@@ -41,7 +41,8 @@ void mark_smooth(const ReturnsView& v, const std::vector<std::size_t>& seq, cons
 /// pixels in both settings for 11 valid returns, and 5 more of 18,110 on pure grazing ground).
 inline bool is_mixed(char edge, char other_direction) {
   switch (edge) {
-    case kStrongEdge: return true;
+    case kStrongEdge:
+    case kBesideVoid: return true;
     case kCornerEdge: return other_direction == kSmooth || other_direction == kRough || other_direction == kOneChanging;
     case kWeakEdge: return other_direction == kRough;
     default: return false;

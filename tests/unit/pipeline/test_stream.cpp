@@ -72,6 +72,7 @@ ScanLine line_of(const Pass &p, std::size_t k) {
 
 struct Streamed {
   std::vector<Label> label;
+  std::vector<std::uint8_t> flags;  ///< the evidence bits (kFlag*), as returns.pcd's `flags`
   std::vector<double> x, y, z;
 };
 
@@ -84,6 +85,7 @@ Streamed stream_all(LineStream &s, const std::vector<std::string> &scans) {
     for (const Pass &o : lines)
       for (std::size_t i = 0; i < o.size(); ++i) {
         out.label.push_back(o.label[i]);
+        out.flags.push_back(o.flags[i]);
         out.x.push_back(o.x[i]);
         out.y.push_back(o.y[i]);
         out.z.push_back(o.z[i]);
@@ -121,7 +123,7 @@ TEST(Stream, LineByLineEqualsTheBatchRun) {
   const PipelineConfig cfg = streaming_config(dir + "/batch", true);
   Pipeline::prepare(cfg).run();
   const io::PcdTable t = io::read_pcd(dir + "/batch/returns.pcd");
-  const auto label = test::column(t, "label"), x = test::column(t, "x"),
+  const auto label = test::column(t, "label"), flags = test::column(t, "flags"), x = test::column(t, "x"),
              y = test::column(t, "y"), z = test::column(t, "z");
 
   for (const std::size_t block : {1, 7}) {
@@ -132,7 +134,7 @@ TEST(Stream, LineByLineEqualsTheBatchRun) {
     ASSERT_EQ(st.label.size(), label.size());
     std::size_t label_diff = 0, point_diff = 0, rejected = 0;
     for (std::size_t i = 0; i < label.size(); ++i) {
-      label_diff += static_cast<double>(st.label[i]) != label[i];
+      label_diff += static_cast<double>(st.label[i]) != label[i] || static_cast<double>(st.flags[i]) != flags[i];
       rejected += st.label[i] != Label::kKept;
       const bool both_nan = std::isnan(x[i]) && std::isnan(st.x[i]);
       if (!both_nan &&
@@ -179,8 +181,8 @@ TEST(Stream, AWideFootprintsExtraRoundsStreamAsTheBatchRun) {
     };
     const PipelineConfig cfg = with_divergence(dir + "/batch", "0.025");
     Pipeline::prepare(cfg).run();
-    const auto label =
-        test::column(io::read_pcd(dir + "/batch/returns.pcd"), "label");
+    const io::PcdTable batch = io::read_pcd(dir + "/batch/returns.pcd");
+    const auto label = test::column(batch, "label"), flags = test::column(batch, "flags");
     // Just under one beam step: no extra round along the lines (across them, only where the nod
     // moves the beam by less than the footprint between lines: on the sample, 13 mrad a line, only
     // where the nod turns).
@@ -197,10 +199,13 @@ TEST(Stream, AWideFootprintsExtraRoundsStreamAsTheBatchRun) {
     }
     const Streamed st = stream_all(s, cfg.scans);
     ASSERT_EQ(st.label.size(), label.size());
-    std::size_t label_diff = 0;
-    for (std::size_t i = 0; i < label.size(); ++i)
-      label_diff += static_cast<double>(st.label[i]) != label[i];
-    EXPECT_EQ(label_diff, 0u);
+    std::size_t label_diff = 0, runs = 0;
+    for (std::size_t i = 0; i < label.size(); ++i) {
+      label_diff += static_cast<double>(st.label[i]) != label[i] || static_cast<double>(st.flags[i]) != flags[i];
+      runs += (static_cast<unsigned>(flags[i]) & kFlagMixedRun) != 0;
+    }
+    EXPECT_EQ(label_diff, 0u);  // labels and their evidence bits
+    EXPECT_GT(runs, 0u);        // the later rounds' returns say so
   }
 }
 

@@ -80,6 +80,7 @@ TEST(RejectMixedPixels, AVeilBetweenTwoSurfacesIsFlaggedAndTheSurfacesAreNot) {
   Pass p = test::line_pass(r, a);
   EXPECT_EQ(reject_mixed_pixels(p, MixedPixelParams{}, coaxial_sensor()), 1u);
   EXPECT_EQ(p.label[10], Label::kMixedPixel);
+  EXPECT_EQ(p.flags[10], kFlagMixedAlong);  // its evidence: the tests along its line, both sides seen
   // Only the return itself, never a window of neighbours.
   EXPECT_EQ(p.label[9], Label::kKept);
   EXPECT_EQ(p.label[11], Label::kKept);
@@ -154,7 +155,10 @@ TEST(RejectMixedPixels, BesideAVoidAReturnThatBreaksFromItsOneSurfaceIsAMixture)
     for (int k = 1; k <= 12; ++k) r.push_back(ground(k));
     Pass p = test::line_pass(r, std::vector<float>(r.size(), 100.0f));
     reject_mixed_pixels(p, MixedPixelParams{}, coaxial_sensor());
-    return p.label[static_cast<std::size_t>(voids)];
+    const std::size_t i = static_cast<std::size_t>(voids);
+    // Its evidence says so: along the line, beside a void.
+    EXPECT_EQ(p.flags[i], p.label[i] == Label::kMixedPixel ? kFlagMixedAlong | kFlagBesideVoid : 0);
+    return p.label[i];
   };
   // 0.4 m short of the ground's quadratic trend (its step there is 0.2 m): a mixture.
   EXPECT_EQ(scan(ground(0) - 0.4f, 5), Label::kMixedPixel);
@@ -674,4 +678,57 @@ TEST(RejectMixedPixels, RoundsAcrossLinesFollowTheLocalNodStepAndAWindowDecidesA
       differ += w.label[i - p.line_begin[from]] != batch.label[i];
   }
   EXPECT_EQ(differ, 0u);
+}
+
+TEST(RejectMixedPixels, RoundsPeelRunsAcrossLinesOnlyWhereTheFootprintsOverlap) {
+  // A near surface (5 m) over a far one (10 m), the same on every beam, with a ramp of three
+  // returns between them across lines. The footprint (15 mrad) is wider than the bearing step
+  // (10 mrad), so the stage runs a later round. Where the lines are 5 mrad apart the footprint
+  // spans three of them and the ramp is a run of mixtures: the later rounds peel it. Where they
+  // are 20 mrad apart the footprints of two lines do not overlap: no run spans them, and the
+  // later round does not test the other line's return again (the first round's verdict stands,
+  // as with a pencil beam). Each flagged return says what found it (Pass::flags).
+  const auto ramp_pass = [](double line_step) {
+    std::vector<std::vector<float>> rows;
+    std::vector<float> nods;
+    for (int k = 0; k < 30; ++k) {
+      // The ramp, lines 12-14: a quarter, a half and three quarters of the footprint on the far
+      // surface, which returns a quarter of the near one's power (1 / r^2): the mixing model's
+      // ranges r = w 5 + (1 - w) 10 with w = f / (f + (1 - f) / 4).
+      const int into = k - 12;
+      const float ramp[3] = {5.38f, 6.0f, 7.14f};
+      const float r = into < 0 ? 5.0f : into >= 3 ? 10.0f : ramp[into];
+      rows.emplace_back(21, r);
+      nods.push_back(static_cast<float>(line_step * k));
+    }
+    return grid_pass(rows, nods);
+  };
+  const auto flagged = [&](double line_step, double divergence, std::uint8_t* evidence) {
+    Pass p = ramp_pass(line_step);
+    SensorParams s = coaxial_sensor();
+    s.beam_divergence = divergence;
+    reject_mixed_pixels(p, MixedPixelParams{}, s);
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      if (p.label[i] != Label::kMixedPixel) {
+        EXPECT_EQ(p.flags[i], 0u) << "evidence on a return not labelled mixed_pixel";
+        continue;
+      }
+      ++n;
+      EXPECT_NE(p.flags[i] & (kFlagMixedAlong | kFlagMixedAcross | kFlagSpike), 0) << "a label without its evidence";
+      *evidence |= p.flags[i];
+    }
+    return n;
+  };
+  std::uint8_t dense_ev = 0, sparse_ev = 0, ignored = 0;
+  const std::size_t dense = flagged(0.005, 0.015, &dense_ev), dense_pencil = flagged(0.005, 1e-9, &ignored);
+  const std::size_t sparse = flagged(0.020, 0.015, &sparse_ev), sparse_pencil = flagged(0.020, 1e-9, &ignored);
+  std::printf("ramp across lines: 5 mrad apart %zu flagged (%zu with a pencil beam), 20 mrad apart %zu (%zu)\n", dense,
+              dense_pencil, sparse, sparse_pencil);
+  EXPECT_GT(dense, dense_pencil);                  // a run of mixtures: the later rounds peel it
+  EXPECT_NE(dense_ev & kFlagMixedRun, 0);          // ... and the peeled returns say so
+  EXPECT_EQ(sparse, sparse_pencil);                // lines apart: no run across them
+  EXPECT_EQ(sparse_ev & kFlagMixedRun, 0);
+  EXPECT_EQ(dense_ev & kFlagMixedAlong, 0);        // every line is flat along: found across lines
+  EXPECT_NE(dense_ev & kFlagMixedAcross, 0);
 }

@@ -19,6 +19,13 @@ struct ExtraField {
 
 /// Pass::flags bits.
 inline constexpr std::uint8_t kFlagRepaired = 1;  ///< range replaced by its prediction (reject_occlusion repair)
+// The evidence behind a `mixed_pixel` label (reject_mixed_pixels; docs/mixed_pixels.md): one or
+// more of these, set only on the returns it labels.
+inline constexpr std::uint8_t kFlagMixedAlong = 2;   ///< the tests along its scan line found it
+inline constexpr std::uint8_t kFlagMixedAcross = 4;  ///< the tests across lines (same beam) found it
+inline constexpr std::uint8_t kFlagBesideVoid = 8;   ///< ... in a direction where one side is a void (test 5)
+inline constexpr std::uint8_t kFlagSpike = 16;       ///< a spike whose range or amplitude gives it away (test 6)
+inline constexpr std::uint8_t kFlagMixedRun = 32;    ///< found in a later round, inside a run of mixtures
 
 struct Pass {
   std::size_t index = 0;  ///< position of the pass file in the run's ordered list

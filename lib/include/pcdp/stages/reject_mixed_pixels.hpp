@@ -136,6 +136,7 @@ enum MixedEdge : char {
   kCornerEdge = 2,  ///< one side is a surface one return wide (its next step is an edge): flagged
                     ///< unless the return is flat in the other direction (a face seen edge-on)
   kStrongEdge = 3,  ///< flagged
+  kBesideVoid = 4,  ///< one-sided (test 5): beside a void, off the trend of its one surface: flagged
 };
 
 /// Marks the mixed-pixel candidates among the returns of one sequence of indices in scan order
