@@ -18,6 +18,7 @@
 #include "pcdp/io/geotiff.hpp"
 #include "pcdp/import/3dtk.hpp"
 #include "pcdp/core/labels.hpp"
+#include "pcdp/core/pass.hpp"
 #include "pcdp/io/pass_file.hpp"
 #include "pcdp/io/pcd.hpp"
 #include "pcdp_test_paths.hpp"
@@ -405,6 +406,45 @@ TEST(SampleScans, RegisterOnlyErrorIsConsistentWithTheSimulatedNoise) {
   ASSERT_GT(implied, 0.0);
   EXPECT_GT(median, implied / 2);
   EXPECT_LT(median, implied * 2);
+}
+
+TEST(SampleScans, EveryMixedPixelSaysWhatFoundIt) {
+  // returns.pcd's flags carry the evidence of each mixed_pixel label (docs/data_contract.md), and
+  // report.json counts it: along the lines, across them, beside a void, spikes, later rounds.
+  const std::string out = test::fresh_dir();
+  const auto res = run_cli({"run", std::string(PCDP_SOURCE_DIR) + "/pipelines/nodding_terrain.yaml", "--output-dir", out, "-q"});
+  ASSERT_EQ(res.exit_code, 0) << res.err;
+  const io::PcdTable t = io::read_pcd(out + "/returns.pcd");
+  const auto label = test::column(t, "label"), flags = test::column(t, "flags");
+  const unsigned evidence = kFlagMixedAlong | kFlagMixedAcross | kFlagBesideVoid | kFlagSpike | kFlagMixedRun;
+  std::map<unsigned, double> with_bit;
+  std::size_t mixed = 0;
+  for (std::size_t i = 0; i < label.size(); ++i) {
+    const unsigned f = static_cast<unsigned>(flags[i]);
+    if (static_cast<Label>(label[i]) != Label::kMixedPixel) {
+      EXPECT_EQ(f & evidence, 0u) << "evidence on return " << i << " labelled " << label[i];
+      continue;
+    }
+    ++mixed;
+    EXPECT_NE(f & (kFlagMixedAlong | kFlagMixedAcross | kFlagSpike), 0u) << "return " << i << ": a label without evidence";
+    for (const unsigned b : {kFlagMixedAlong, kFlagMixedAcross, kFlagBesideVoid, kFlagSpike, kFlagMixedRun})
+      with_bit[b] += (f & b) != 0;
+  }
+  ASSERT_GT(mixed, 100u);
+  EXPECT_GT(with_bit[kFlagMixedAlong], 0.0);
+  EXPECT_GT(with_bit[kFlagMixedAcross], 0.0);
+  const auto rep = nlohmann::json::parse(test::read_text(out + "/report.json"));
+  nlohmann::json stage;
+  for (const auto& s : rep["stages"])
+    if (s["type"] == "reject_mixed_pixels") stage = s;
+  ASSERT_FALSE(stage.is_null());
+  EXPECT_EQ(stage["rejected"]["mixed_pixel"].get<std::size_t>(), mixed);
+  const auto& m = stage["metrics"];
+  EXPECT_EQ(m["found_along_lines"].get<double>(), with_bit[kFlagMixedAlong]);
+  EXPECT_EQ(m["found_across_lines"].get<double>(), with_bit[kFlagMixedAcross]);
+  EXPECT_EQ(m["found_beside_a_void"].get<double>(), with_bit[kFlagBesideVoid]);
+  EXPECT_EQ(m["found_as_spikes"].get<double>(), with_bit[kFlagSpike]);
+  EXPECT_EQ(m["found_in_later_rounds"].get<double>(), with_bit[kFlagMixedRun]);
 }
 
 TEST(Cli, AmplitudeModelPrintsTheProfileAndDrawsIt) {

@@ -2,8 +2,12 @@
 // reads on each side in streaming, and its construction from the validated options. The
 // algorithm is in reject_mixed_pixels.cpp, the options in reject_mixed_pixels_options.cpp.
 #include <algorithm>
+#include <array>
+#include <iterator>
+#include <utility>
 #include <memory>
 
+#include "pcdp/core/pass.hpp"
 #include "pcdp/pipeline/config.hpp"
 #include "pcdp/stages/reject_mixed_pixels.hpp"
 #include "reject_mixed_pixels_detail.hpp"
@@ -31,7 +35,18 @@ class RejectMixedPixelsStage final : public Stage {
     return std::max(params_.window, params_.spikes ? static_cast<int>(kObjectReach) : 0) + 1 +
            kMaxExtraRounds * std::min(params_.window, kRoundWindow);
   }
-  void label(Pass& pass, StageReport&) const override { reject_mixed_pixels(pass, params_, sensor_, pose_sigma_); }
+  void label(Pass& pass, StageReport& report) const override {
+    reject_mixed_pixels(pass, params_, sensor_, pose_sigma_);
+    // What found the mixed pixels (Pass::flags), counted into report.json's metrics.
+    static constexpr std::pair<std::uint8_t, const char*> kEvidence[] = {
+        {kFlagMixedAlong, "found_along_lines"}, {kFlagMixedAcross, "found_across_lines"},
+        {kFlagBesideVoid, "found_beside_a_void"}, {kFlagSpike, "found_as_spikes"}, {kFlagMixedRun, "found_in_later_rounds"}};
+    std::array<std::uint64_t, std::size(kEvidence)> n{};
+    for (std::size_t i = 0; i < pass.size(); ++i)
+      if (pass.label[i] == Label::kMixedPixel)
+        for (std::size_t k = 0; k < n.size(); ++k) n[k] += (pass.flags[i] & kEvidence[k].first) != 0;
+    for (std::size_t k = 0; k < n.size(); ++k) report.metrics[kEvidence[k].second] += static_cast<double>(n[k]);
+  }
 
  private:
   MixedPixelParams params_;
