@@ -74,15 +74,19 @@
 using namespace pcdp;
 
 namespace {
-int g_dump_every = 0;
-std::vector<std::pair<std::string, std::string>> g_params;  ///< --param NAME=VALUE
+int g_dump_every = 0;  ///< --dump-misses K: print every K-th miss with its neighbours
+/// --param NAME=VALUE, checked when read; NaN for jump_min=derived.
+std::vector<std::pair<std::string, double>> g_params;
 
 /// The stage's parameters for a sensor: the defaults, with --param's changes.
 MixedPixelParams sweep_params(const SensorParams& sensor) {
   MixedPixelParams p;
-  for (const auto& [name, value] : g_params) {
-    const double v = std::atof(value.c_str());
-    if (name == "jump_min") p.jump_min = value == "derived" ? -1 : v;
+  bool derived = false;
+  for (const auto& [name, v] : g_params) {
+    if (name == "jump_min") {
+      derived = std::isnan(v);
+      p.jump_min = v;
+    }
     else if (name == "jump_ratio") p.jump_ratio = v;
     else if (name == "range_tolerance") p.range_tolerance = v;
     else if (name == "amplitude_ratio") p.amplitude_ratio = v;
@@ -90,9 +94,9 @@ MixedPixelParams sweep_params(const SensorParams& sensor) {
     else if (name == "window") p.window = static_cast<int>(v);
     else if (name == "spike_width") p.spike_width = static_cast<int>(v);
   }
-  if (p.jump_min < 0) p.jump_min = 2 * (p.range_tolerance + 3 * sensor.range_sigma);
+  if (derived) p.jump_min = 2 * (p.range_tolerance + 3 * sensor.range_sigma);
   return p;
-}  ///< --dump-misses K: print every K-th miss with its neighbours
+}
 constexpr double kPi = 3.14159265358979323846;
 
 struct SweepSetting {
@@ -606,7 +610,7 @@ int main(int argc, char** argv) {
                              "amplitude_ratio, amplitude_slack, window, spike_width)\n", name.c_str());
         return 2;
       }
-      g_params.emplace_back(name, value);
+      g_params.emplace_back(name, name == "jump_min" && value == "derived" ? NAN : number(value.c_str()));
     } else {
       std::fprintf(stderr,
                    "usage: %s [--set tuning|heldout] [--index N]... [--json FILE] [--misses K] [--rank recall|f1|valid]\n"

@@ -36,16 +36,22 @@ class RejectMixedPixelsStage final : public Stage {
            kMaxExtraRounds * std::min(params_.window, kRoundWindow);
   }
   void label(Pass& pass, StageReport& report) const override {
-    reject_mixed_pixels(pass, params_, sensor_, pose_sigma_);
-    // What found the mixed pixels (Pass::flags), counted into report.json's metrics.
+    // What found the mixed pixels this call labels (Pass::flags), counted into report.json's
+    // metrics: the counts after less those before (another instance of the stage may have run).
     static constexpr std::pair<std::uint8_t, const char*> kEvidence[] = {
         {kFlagMixedAlong, "found_along_lines"}, {kFlagMixedAcross, "found_across_lines"},
         {kFlagBesideVoid, "found_beside_a_void"}, {kFlagSpike, "found_as_spikes"}, {kFlagMixedRun, "found_in_later_rounds"}};
-    std::array<std::uint64_t, std::size(kEvidence)> n{};
-    for (std::size_t i = 0; i < pass.size(); ++i)
-      if (pass.label[i] == Label::kMixedPixel)
-        for (std::size_t k = 0; k < n.size(); ++k) n[k] += (pass.flags[i] & kEvidence[k].first) != 0;
-    for (std::size_t k = 0; k < n.size(); ++k) report.metrics[kEvidence[k].second] += static_cast<double>(n[k]);
+    const auto count = [&] {
+      std::array<double, std::size(kEvidence)> n{};
+      for (std::size_t i = 0; i < pass.flags.size(); ++i)
+        if (pass.label[i] == Label::kMixedPixel)
+          for (std::size_t k = 0; k < n.size(); ++k) n[k] += (pass.flags[i] & kEvidence[k].first) != 0;
+      return n;
+    };
+    const auto before = count();
+    reject_mixed_pixels(pass, params_, sensor_, pose_sigma_);
+    const auto after = count();
+    for (std::size_t k = 0; k < after.size(); ++k) report.metrics[kEvidence[k].second] += after[k] - before[k];
   }
 
  private:

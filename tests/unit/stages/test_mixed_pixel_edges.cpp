@@ -88,7 +88,7 @@ void check_edge(const char* what, const sim::Box& front, double recall_4mrad, do
 }
 }  // namespace
 
-// Measured (recall at 4 / 12 mrad): across 1.000 / 0.73, along 1.000 / 0.58 (the weakest
+// Measured (recall at 4 / 12 mrad): across 1.000 / 0.73, along 1.000 / 0.57 (the weakest
 // direction, docs/mixed_pixels.md), oblique 0.91 / 0.95.
 TEST(MixedPixelEdges, EdgeAcrossTheLines) {
   // A tall narrow pillar: its two vertical sides cut every line.
