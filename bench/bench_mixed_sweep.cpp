@@ -75,26 +75,31 @@ using namespace pcdp;
 
 namespace {
 int g_dump_every = 0;  ///< --dump-misses K: print every K-th miss with its neighbours
+/// The MixedPixelParams members --param NAME=VALUE may set, each with its setter: the one list
+/// that checks the name, applies the value and names them in the messages.
+using ParamSetter = void (*)(MixedPixelParams&, double);
+const std::map<std::string, ParamSetter> kSweepParams = {
+    {"jump_min", [](MixedPixelParams& p, double v) { p.jump_min = v; }},
+    {"jump_ratio", [](MixedPixelParams& p, double v) { p.jump_ratio = v; }},
+    {"range_tolerance", [](MixedPixelParams& p, double v) { p.range_tolerance = v; }},
+    {"amplitude_ratio", [](MixedPixelParams& p, double v) { p.amplitude_ratio = v; }},
+    {"amplitude_slack", [](MixedPixelParams& p, double v) { p.amplitude_slack = v; }},
+    {"window", [](MixedPixelParams& p, double v) { p.window = static_cast<int>(v); }},
+    {"spike_width", [](MixedPixelParams& p, double v) { p.spike_width = static_cast<int>(v); }},
+};
+std::string sweep_param_names() {
+  std::string names;
+  for (const auto& [name, set] : kSweepParams) names += (names.empty() ? "" : ", ") + name;
+  return names;
+}
 /// --param NAME=VALUE, checked when read; NaN for jump_min=derived.
 std::vector<std::pair<std::string, double>> g_params;
 
 /// The stage's parameters for a sensor: the defaults, with --param's changes.
 MixedPixelParams sweep_params(const SensorParams& sensor) {
   MixedPixelParams p;
-  bool derived = false;
-  for (const auto& [name, v] : g_params) {
-    if (name == "jump_min") {
-      derived = std::isnan(v);
-      p.jump_min = v;
-    }
-    else if (name == "jump_ratio") p.jump_ratio = v;
-    else if (name == "range_tolerance") p.range_tolerance = v;
-    else if (name == "amplitude_ratio") p.amplitude_ratio = v;
-    else if (name == "amplitude_slack") p.amplitude_slack = v;
-    else if (name == "window") p.window = static_cast<int>(v);
-    else if (name == "spike_width") p.spike_width = static_cast<int>(v);
-  }
-  if (derived) p.jump_min = 2 * (p.range_tolerance + 3 * sensor.range_sigma);
+  for (const auto& [name, v] : g_params) kSweepParams.at(name)(p, v);
+  if (std::isnan(p.jump_min)) p.jump_min = 2 * (p.range_tolerance + 3 * sensor.range_sigma);  // derived
   return p;
 }
 constexpr double kPi = 3.14159265358979323846;
@@ -603,11 +608,8 @@ int main(int argc, char** argv) {
     else if (k == "--require-phantom-cells" && has) need_phantom = static_cast<long>(number(argv[++a]));
     else if (k == "--param" && has && std::strchr(argv[a + 1], '=')) {
       const std::string nv = argv[++a], name = nv.substr(0, nv.find('=')), value = nv.substr(nv.find('=') + 1);
-      static const std::vector<std::string> known = {"jump_min", "jump_ratio", "range_tolerance", "amplitude_ratio",
-                                                     "amplitude_slack", "window", "spike_width"};
-      if (std::find(known.begin(), known.end(), name) == known.end()) {
-        std::fprintf(stderr, "--param %s: unknown parameter (one of jump_min, jump_ratio, range_tolerance, "
-                             "amplitude_ratio, amplitude_slack, window, spike_width)\n", name.c_str());
+      if (!kSweepParams.count(name)) {
+        std::fprintf(stderr, "--param %s: unknown parameter (one of %s)\n", name.c_str(), sweep_param_names().c_str());
         return 2;
       }
       g_params.emplace_back(name, name == "jump_min" && value == "derived" ? NAN : number(value.c_str()));
@@ -616,12 +618,12 @@ int main(int argc, char** argv) {
                    "usage: %s [--set tuning|heldout] [--index N]... [--json FILE] [--misses K] [--rank recall|f1|valid]\n"
                    "          [--require-recall R] [--require-valid-rejected PCT] [--require-occlusion-recall R] [--require-phantom-cells N]\n"
                    "          [--dump-misses K] [--param NAME=VALUE]...\n"
-                   "  --param NAME=VALUE: one MixedPixelParams member changed (jump_min [m or derived], jump_ratio,\n"
-                   "                      range_tolerance, amplitude_ratio, amplitude_slack, window, spike_width)\n"
+                   "  --param NAME=VALUE: one MixedPixelParams member changed (%s; jump_min=derived:\n"
+                   "                      2 x (range_tolerance + 3 sensor.range_sigma))\n"
                    "  --dump-misses K: print every K-th miss and every K-th valid return rejected, with neighbours\n"
                    "  --misses K: analyse the misses of the K worst settings by --rank (default 3, recall)\n"
                    "  tuning: settings 0-23; heldout: 1000-1015 (never used for tuning)\n",
-                   argv[0]);
+                   argv[0], sweep_param_names().c_str());
       return 2;
     }
   }
