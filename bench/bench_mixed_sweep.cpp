@@ -37,7 +37,7 @@
 //
 // Usage: pcdp_mixed_sweep [--set tuning|heldout] [--index N]... [--json FILE] [--misses K] [--rank recall|f1|valid]
 //                         [--require-recall R] [--require-valid-rejected PCT] [--require-occlusion-recall R]
-//                         [--require-phantom-cells N] [--dump-misses K] [--param NAME=VALUE]...
+//                         [--require-phantom-cells N] [--dump-misses K] [--dump-phantoms] [--param NAME=VALUE]...
 // --param NAME=VALUE (repeatable) runs the stage with one MixedPixelParams member changed from its
 // default, for the trades in docs/mixed_pixels.md: jump_min (metres, or "derived": 2 x
 // (range_tolerance + 3 sensor.range_sigma)), jump_ratio, range_tolerance, amplitude_ratio,
@@ -75,6 +75,7 @@ using namespace pcdp;
 
 namespace {
 int g_dump_every = 0;  ///< --dump-misses K: print every K-th miss with its neighbours
+bool g_dump_phantoms = false;  ///< --dump-phantoms: print every kept return > 0.3 m above its cell's true top
 /// The MixedPixelParams members --param NAME=VALUE may set, each with its setter: the one list
 /// that checks the name, applies the value and names them in the messages.
 using ParamSetter = void (*)(MixedPixelParams&, double);
@@ -375,6 +376,13 @@ Result run_setting(const SweepSetting& st) {
       }
       std::printf("\n");
     };
+    if (g_dump_phantoms)  // every kept return > 0.3 m above its cell's true top
+      for (std::size_t i = 0; i < p.size(); ++i)
+        if (p.is_kept(i) && p.z[i] > cell_top(c.scene, grid.resolution(), grid.cell_index(p.x[i]), grid.cell_index(p.y[i])).second + 0.3) {
+          std::printf("setting %d pass %zu line %zu beam %zu z %.2f top %.2f: ", st.index, filtered.size(), i / nb, i % nb,
+                      p.z[i], c.scene.top_height(p.x[i], p.y[i]));
+          dump("kept", i);
+        }
     for (std::size_t i = 0; i < p.size(); ++i) {
       const bool truth_mixed = sp.truth[i] == Label::kMixedPixel, truth_valid = sp.truth[i] == Label::kKept;
       if (p.label[i] == Label::kMixedPixel && (truth_mixed || truth_valid))
@@ -602,6 +610,7 @@ int main(int argc, char** argv) {
     else if (k == "--misses" && has) worst = std::atoi(argv[++a]);
     else if (k == "--rank" && has) rank = argv[++a];
     else if (k == "--dump-misses" && has) g_dump_every = std::atoi(argv[++a]);
+    else if (k == "--dump-phantoms") g_dump_phantoms = true;
     else if (k == "--require-recall" && has) need_recall = number(argv[++a]);
     else if (k == "--require-valid-rejected" && has) need_valid = number(argv[++a]);
     else if (k == "--require-occlusion-recall" && has) need_occlusion = number(argv[++a]);
@@ -617,10 +626,11 @@ int main(int argc, char** argv) {
       std::fprintf(stderr,
                    "usage: %s [--set tuning|heldout] [--index N]... [--json FILE] [--misses K] [--rank recall|f1|valid]\n"
                    "          [--require-recall R] [--require-valid-rejected PCT] [--require-occlusion-recall R] [--require-phantom-cells N]\n"
-                   "          [--dump-misses K] [--param NAME=VALUE]...\n"
+                   "          [--dump-misses K] [--dump-phantoms] [--param NAME=VALUE]...\n"
                    "  --param NAME=VALUE: one MixedPixelParams member changed (%s; jump_min=derived:\n"
                    "                      2 x (range_tolerance + 3 sensor.range_sigma))\n"
                    "  --dump-misses K: print every K-th miss and every K-th valid return rejected, with neighbours\n"
+                   "  --dump-phantoms: print every kept return more than 0.3 m above its cell's true top, with neighbours\n"
                    "  --misses K: analyse the misses of the K worst settings by --rank (default 3, recall)\n"
                    "  tuning: settings 0-23; heldout: 1000-1015 (never used for tuning)\n",
                    argv[0], sweep_param_names().c_str());

@@ -3,6 +3,7 @@
 // reject_mixed_pixels_cloud.cpp, reject_mixed_pixels_stage.cpp).
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <vector>
 
@@ -14,8 +15,27 @@ namespace pcdp::mixed_detail {
 constexpr int kMaxExtraRounds = 2;
 /// Returns searched each way in the rounds after the first.
 constexpr int kRoundWindow = 3;
-/// Lines searched each way for the object a spike may be a mixture with.
+/// Lines searched each way for the object a spike may be a mixture with: the pure returns of a
+/// post's top are within two or three lines of its mixtures near a nod reversal, where the nod
+/// barely moves from line to line.
 constexpr long kObjectReach = 4;
+
+/// The smallest range step that makes an edge at range r (jump_min, or jump_ratio of r if larger).
+inline double jump_at(const MixedPixelParams& p, double r) { return std::max(p.jump_min, p.jump_ratio * r); }
+/// How far from a surface a return at range r may lie and still be on it.
+inline double tolerance_at(const MixedPixelParams& p, double r, double range_sigma) {
+  return p.range_tolerance + p.range_tolerance_ratio * r + 3.0 * range_sigma;
+}
+
+/// Spikes along a sequence (one line), with the surface behind each (its flanks' mean range and
+/// amplitude, `behind_r`, `behind_a`); reject_mixed_pixels_spikes.cpp says how.
+void mark_spikes(const ReturnsView& v, const std::vector<std::size_t>& seq, const MixedPixelParams& p,
+                 std::vector<char>& spike, std::vector<float>& behind_r, std::vector<float>& behind_a);
+/// The spikes that lie off every surface in a sequence of the other direction (across lines), or
+/// whose amplitude says they are mixtures with the surface behind.
+void mark_spikes_off_surface(const ReturnsView& v, const std::vector<std::size_t>& seq, const MixedPixelParams& p,
+                             double range_sigma, const std::vector<char>& spike, const std::vector<float>& behind_r,
+                             const std::vector<float>& behind_a, std::vector<char>& off);
 
 /// How the return at `pos` lies between its immediate neighbours in one direction. With only one
 /// immediate neighbour (the other position is a void, or the end of the line or of the sweep),

@@ -732,3 +732,62 @@ TEST(RejectMixedPixels, RoundsPeelRunsAcrossLinesOnlyWhereTheFootprintsOverlap) 
   EXPECT_EQ(dense_ev & kFlagMixedAlong, 0);        // every line is flat along: found across lines
   EXPECT_NE(dense_ev & kFlagMixedAcross, 0);
 }
+
+TEST(RejectMixedPixels, TwoMixturesThatShareAFootprintDoNotVouchForEachOther) {
+  // A near surface (5 m) and a far one (10 m) with two returns at 7 m between them: two mixtures
+  // of one edge that keep each other's range, where the beams are closer than half the
+  // divergence (each lies inside the other's footprint), so neither is a surface's witness; or a
+  // strip of surface two returns wide, where they are farther apart. Across lines (the same on
+  // every beam) and along the line (the same on every line), each with the beams inside and
+  // outside each other's footprint.
+  const auto across_pass = [](double line_step) {
+    std::vector<std::vector<float>> rows;
+    std::vector<float> nods;
+    for (int k = 0; k < 30; ++k) {
+      rows.emplace_back(21, k < 12 ? 5.0f : k < 14 ? 7.0f : 10.0f);
+      nods.push_back(static_cast<float>(line_step * k));
+    }
+    return grid_pass(rows, nods);
+  };
+  const auto along_pass = [] {  // bearings 10 mrad apart (grid_pass)
+    std::vector<float> row(21, 10.0f);
+    for (int b = 0; b < 9; ++b) row[static_cast<std::size_t>(b)] = 5.0f;
+    row[9] = row[10] = 7.0f;
+    return grid_pass(std::vector<std::vector<float>>(30, row));
+  };
+  // How many of the returns at 7 m (2 lines x 21 beams across, 30 lines x 2 beams along) are flagged.
+  const auto flagged_at_7m = [](Pass p, double divergence, unsigned* evidence) {
+    SensorParams s = coaxial_sensor();
+    s.beam_divergence = divergence;
+    reject_mixed_pixels(p, MixedPixelParams{}, s);
+    std::size_t n = 0, at7 = 0;
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      if (std::fabs(p.range[i] - 7.0f) > 0.01f) continue;
+      ++at7;
+      if (p.label[i] == Label::kMixedPixel) {
+        ++n;
+        *evidence |= p.flags[i];
+      }
+    }
+    EXPECT_TRUE(at7 == 42u || at7 == 60u) << at7;
+    return n;
+  };
+  unsigned ev_across = 0, ev_along = 0, ignored = 0;
+  // Across lines: 3 mrad apart inside a 15 mrad footprint; 10 mrad apart; a pencil beam.
+  const std::size_t across_shared = flagged_at_7m(across_pass(0.003), 0.015, &ev_across);
+  const std::size_t across_apart = flagged_at_7m(across_pass(0.010), 0.015, &ignored);
+  const std::size_t across_pencil = flagged_at_7m(across_pass(0.003), 1e-9, &ignored);
+  // Along the line: bearings 10 mrad apart inside a 25 mrad footprint; a 15 mrad one.
+  const std::size_t along_shared = flagged_at_7m(along_pass(), 0.025, &ev_along);
+  const std::size_t along_apart = flagged_at_7m(along_pass(), 0.015, &ignored);
+  std::printf("two returns at 7 m between 5 and 10 m: across lines %zu / %zu / %zu flagged (shared / apart / pencil); "
+              "along %zu / %zu\n", across_shared, across_apart, across_pencil, along_shared, along_apart);
+  EXPECT_EQ(across_shared, 42u);
+  EXPECT_NE(ev_across & kFlagMixedAcross, 0u);
+  EXPECT_EQ(ev_across & kFlagMixedAlong, 0u);  // flat along every line
+  EXPECT_EQ(across_apart, 0u);
+  EXPECT_EQ(across_pencil, 0u);
+  EXPECT_EQ(along_shared, 60u);
+  EXPECT_NE(ev_along & kFlagMixedAlong, 0u);
+  EXPECT_EQ(along_apart, 0u);
+}

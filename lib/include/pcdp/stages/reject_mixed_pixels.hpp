@@ -36,6 +36,10 @@
 // neighbours in the other scan direction, where the four are one plane) continues that side, in
 // test 2 and in the one-sided test; beside a void across lines, a return as bright as its own side
 // may lie off that plane by the noise of two poses (`pose_sigma`): a mixture with a void is dimmer.
+// A neighbour that keeps the return's range is no witness of a surface where its beam lies inside
+// the return's footprint (within half of sensor.beam_divergence, in bearing along a line, in nod
+// across lines): two mixtures of one edge keep each other's range. Tests 1-4 read a side past such
+// neighbours (in the first round; ReturnsView::along_angle, across_angle, divergence).
 // Spikes (`spikes`, organized passes with across_lines): a run of 1 to spike_width returns, each
 // nearer by more than an edge jump than both returns flanking the run along the line, which agree
 // with each other (one surface behind it), is a thin object or a mixture of one with the surface
@@ -127,6 +131,11 @@ struct ReturnsView {
   /// 1-sigma noise of the poses a line is registered with (position m, rpy rad; pose_sigma): two
   /// lines' returns of one surface differ by it as well as by range noise.
   double pose_position_sigma = 0.0, pose_rpy_sigma = 0.0;
+  /// Each return's beam angle in the direction of the sequences tested (bearing along a line, nod
+  /// across lines; may be null) and the full beam divergence (rad): two returns closer than the
+  /// divergence share part of one footprint, so one cannot witness the other's surface.
+  const float *along_angle = nullptr, *across_angle = nullptr;
+  double divergence = 0.0;
 };
 
 /// What `mark_mixed_pixels` found at a return, in one scan direction.
