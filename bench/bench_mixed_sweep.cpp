@@ -379,8 +379,9 @@ Result run_setting(const SweepSetting& st) {
     if (g_dump_phantoms)  // every kept return > 0.3 m above its cell's true top
       for (std::size_t i = 0; i < p.size(); ++i)
         if (p.is_kept(i) && p.z[i] > cell_top(c.scene, grid.resolution(), grid.cell_index(p.x[i]), grid.cell_index(p.y[i])).second + 0.3) {
-          std::printf("setting %d pass %zu line %zu beam %zu z %.2f top %.2f: ", st.index, filtered.size(), i / nb, i % nb,
-                      p.z[i], c.scene.top_height(p.x[i], p.y[i]));
+          std::printf("setting %d pass %zu line %zu beam %zu z %.2f, its cell's true top %.2f: ", st.index,
+                      filtered.size() - 1, i / nb, i % nb, p.z[i],
+                      cell_top(c.scene, grid.resolution(), grid.cell_index(p.x[i]), grid.cell_index(p.y[i])).second);
           dump("kept", i);
         }
     for (std::size_t i = 0; i < p.size(); ++i) {

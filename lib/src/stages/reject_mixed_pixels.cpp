@@ -44,8 +44,10 @@ Nb neighbours(const ReturnsView& v, const std::vector<std::size_t>& seq, std::si
     if (!v.usable[k]) continue;
     if (nb.count == 0 && look_through_tol >= 0 && ang &&
         std::fabs(static_cast<double>(v.range[k]) - v.range[self]) <= look_through_tol) {
-      const double d = std::fabs(static_cast<double>(ang[k]) - ang[self]);  // bearings may wrap at +-pi
-      if (std::min(d, 2 * kPi - d) < 0.5 * v.divergence) continue;
+      // Equal readings (a scanner that does not nod, an encoder's plateau) cannot say the beams
+      // are close; bearings may wrap at +-pi.
+      const double d = std::fabs(static_cast<double>(ang[k]) - ang[self]);
+      if (d > 0 && std::min(d, 2 * kPi - d) < 0.5 * v.divergence) continue;
     }
     if (nb.count < 2) {
       nb.idx[nb.count] = k;
@@ -236,10 +238,12 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
     // beams are that close, keep each other's range as two returns of one surface do. In the
     // first round the side is read past such neighbours, to the first return whose beam is outside
     // the footprint or whose range differs. The later rounds test a run's returns with the
-    // mixtures found beside them gone; reading past there found fewer mixed pixels than valid
-    // returns (docs/mixed_pixels.md).
-    if (!v.focus && l.count > 0 && std::fabs(l.r[0] - ri) <= tol) l = neighbours(v, seq, pos, -1, p, tol);
-    if (!v.focus && r.count > 0 && std::fabs(r.r[0] - ri) <= tol) r = neighbours(v, seq, pos, +1, p, tol);
+    // mixtures found beside them gone; reading past there too was measured and not kept
+    // (docs/mixed_pixels.md).
+    if (!v.focus && v.divergence > 0 && (v.across ? v.across_angle : v.along_angle)) {
+      if (l.count > 0 && std::fabs(l.r[0] - ri) <= tol) l = neighbours(v, seq, pos, -1, p, tol);
+      if (r.count > 0 && std::fabs(r.r[0] - ri) <= tol) r = neighbours(v, seq, pos, +1, p, tol);
+    }
     // Two-sided: each side needs a return; and one of them a second one, for its rate of change
     // (with one return on each side, a surface crossing the return looks like an edge).
     if (l.count == 0 || r.count == 0 || (l.count < 2 && r.count < 2)) continue;

@@ -755,14 +755,18 @@ TEST(RejectMixedPixels, TwoMixturesThatShareAFootprintDoNotVouchForEachOther) {
     row[9] = row[10] = 7.0f;
     return grid_pass(std::vector<std::vector<float>>(30, row));
   };
-  // How many of the returns at 7 m (2 lines x 21 beams across, 30 lines x 2 beams along) are flagged.
+  // How many of the returns at 7 m (2 lines x 21 beams across, 30 lines x 2 beams along) are
+  // flagged; the two surfaces' returns, read past their own neighbours too, stay kept.
   const auto flagged_at_7m = [](Pass p, double divergence, unsigned* evidence) {
     SensorParams s = coaxial_sensor();
     s.beam_divergence = divergence;
     reject_mixed_pixels(p, MixedPixelParams{}, s);
-    std::size_t n = 0, at7 = 0;
+    std::size_t n = 0, at7 = 0, surfaces_flagged = 0;
     for (std::size_t i = 0; i < p.size(); ++i) {
-      if (std::fabs(p.range[i] - 7.0f) > 0.01f) continue;
+      if (std::fabs(p.range[i] - 7.0f) > 0.01f) {
+        surfaces_flagged += p.label[i] != Label::kKept;
+        continue;
+      }
       ++at7;
       if (p.label[i] == Label::kMixedPixel) {
         ++n;
@@ -770,6 +774,7 @@ TEST(RejectMixedPixels, TwoMixturesThatShareAFootprintDoNotVouchForEachOther) {
       }
     }
     EXPECT_TRUE(at7 == 42u || at7 == 60u) << at7;
+    EXPECT_EQ(surfaces_flagged, 0u);
     return n;
   };
   unsigned ev_across = 0, ev_along = 0, ignored = 0;
@@ -777,6 +782,8 @@ TEST(RejectMixedPixels, TwoMixturesThatShareAFootprintDoNotVouchForEachOther) {
   const std::size_t across_shared = flagged_at_7m(across_pass(0.003), 0.015, &ev_across);
   const std::size_t across_apart = flagged_at_7m(across_pass(0.010), 0.015, &ignored);
   const std::size_t across_pencil = flagged_at_7m(across_pass(0.003), 1e-9, &ignored);
+  // Equal nod readings (a scanner that does not nod) cannot say the beams are close.
+  const std::size_t across_equal = flagged_at_7m(across_pass(0.0), 0.015, &ignored);
   // Along the line: bearings 10 mrad apart inside a 25 mrad footprint; a 15 mrad one.
   const std::size_t along_shared = flagged_at_7m(along_pass(), 0.025, &ev_along);
   const std::size_t along_apart = flagged_at_7m(along_pass(), 0.015, &ignored);
@@ -787,7 +794,9 @@ TEST(RejectMixedPixels, TwoMixturesThatShareAFootprintDoNotVouchForEachOther) {
   EXPECT_EQ(ev_across & kFlagMixedAlong, 0u);  // flat along every line
   EXPECT_EQ(across_apart, 0u);
   EXPECT_EQ(across_pencil, 0u);
+  EXPECT_EQ(across_equal, 0u);
   EXPECT_EQ(along_shared, 60u);
   EXPECT_NE(ev_along & kFlagMixedAlong, 0u);
+  EXPECT_EQ(ev_along & kFlagMixedAcross, 0u);  // every line alike: flat across lines
   EXPECT_EQ(along_apart, 0u);
 }

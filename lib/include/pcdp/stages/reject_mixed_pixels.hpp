@@ -119,7 +119,9 @@ struct ReturnsView {
   /// the edge of its field of view, which says nothing about a missing surface.
   bool ends_are_voids = false;
   /// If set, only these returns are tested (their neighbours still count): the later rounds for
-  /// runs of mixtures test only the returns next to one found in the round before.
+  /// runs of mixtures test only the returns next to one found in the round before. A view with a
+  /// focus is a later round: its two-sided tests do not read past neighbours that share the
+  /// footprint (below).
   const char* focus = nullptr;
   /// An organized pass: returns per line (0: not organized). With it, a side's two nearest
   /// returns and the neighbours of the nearest in the other scan direction than the sequences
@@ -127,13 +129,16 @@ struct ReturnsView {
   /// along a line; the beams beside it on its line for sequences across lines) make a 2-D patch
   /// whose plane a return may continue.
   std::size_t width = 0;
-  bool across = false;  ///< the sequences run across lines (a return's patch is on another line)
+  /// The sequences run across lines: a return's patch is on another line, and its neighbours'
+  /// beams are compared by `across_angle`, not `along_angle`.
+  bool across = false;
   /// 1-sigma noise of the poses a line is registered with (position m, rpy rad; pose_sigma): two
   /// lines' returns of one surface differ by it as well as by range noise.
   double pose_position_sigma = 0.0, pose_rpy_sigma = 0.0;
-  /// Each return's beam angle in the direction of the sequences tested (bearing along a line, nod
-  /// across lines; may be null) and the full beam divergence (rad): two returns closer than the
-  /// divergence share part of one footprint, so one cannot witness the other's surface.
+  /// Each return's beam angle in each scan direction (bearing along a line, nod across lines; null:
+  /// unknown) and the full beam divergence (rad, 0: unknown). A neighbour whose beam lies within
+  /// half the divergence of a return's (inside its footprint) and keeps its range witnesses no
+  /// surface in tests 1-4; equal angles say nothing.
   const float *along_angle = nullptr, *across_angle = nullptr;
   double divergence = 0.0;
 };
