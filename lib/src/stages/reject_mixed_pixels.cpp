@@ -212,7 +212,9 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
     // Most returns lie inside a surface, with returns on both sides next to them (no void beside,
     // so no one-sided test), and either close to each other (no edge across them) or with the
     // return on the line through the two nearest on one side (on that side's trend, test 2).
-    // The tests below would reach the same verdict after searching the window on both sides.
+    // The tests below would reach the same verdict after searching the window on both sides, but
+    // for the inner returns of a run of three or more mixtures at one range inside one footprint,
+    // which this settles as a surface (docs/mixed_pixels.md: returns that share a footprint).
     if (pos > 0 && pos + 1 < seq.size() && v.usable[seq[pos - 1]] && v.usable[seq[pos + 1]]) {
       const double ra = v.range[seq[pos - 1]], rb = v.range[seq[pos + 1]];
       if (std::fabs(ra - rb) <= jump_at(p, std::min(ra, rb))) continue;
