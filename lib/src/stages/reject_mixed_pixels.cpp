@@ -239,9 +239,9 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
     // divergence) and keeps its range witnesses no surface: two mixtures of one edge, where the
     // beams are that close, keep each other's range as two returns of one surface do. In the
     // first round the side is read past such neighbours, to the first return whose beam is outside
-    // the footprint or whose range differs. The later rounds test a run's returns with the
-    // mixtures found beside them gone; reading past there too was measured and not kept
-    // (docs/mixed_pixels.md).
+    // the footprint or whose range differs. The later rounds do not: their returns lie beside
+    // mixtures already found, where a neighbour that keeps their range is more often the surface
+    // they continue (docs/mixed_pixels.md).
     if (!v.focus && v.divergence > 0 && (v.across ? v.across_angle : v.along_angle)) {
       if (l.count > 0 && std::fabs(l.r[0] - ri) <= tol) l = neighbours(v, seq, pos, -1, p, tol);
       if (r.count > 0 && std::fabs(r.r[0] - ri) <= tol) r = neighbours(v, seq, pos, +1, p, tol);
