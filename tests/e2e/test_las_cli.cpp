@@ -26,23 +26,6 @@ namespace {
 const std::string kAutzen = std::string(PCDP_SHARED_DIR) + "/datasets/pdal_autzen/";
 const std::string kIsprs = std::string(PCDP_SHARED_DIR) + "/datasets/isprs_terrain_pcl/";
 
-/// The "# prepare:" line of a shipped pipeline, its ${SHARED} and ${SOURCE} replaced, as arguments.
-std::vector<std::string> prepare_args(const std::string& yaml, const std::string& out_dir) {
-  std::ifstream in(yaml);
-  for (std::string line; std::getline(in, line);) {
-    if (line.rfind("# prepare: ", 0) != 0) continue;
-    std::istringstream is(line.substr(11));
-    std::vector<std::string> args;
-    for (std::string a; is >> a;) {
-      if (a.rfind("${SHARED}", 0) == 0) a = std::string(PCDP_SHARED_DIR) + a.substr(9);
-      args.push_back(a);
-    }
-    for (std::size_t i = 0; i + 1 < args.size(); ++i)
-      if (args[i] == "--output-dir") args[i + 1] = out_dir;
-    return args;
-  }
-  return {};
-}
 }  // namespace
 
 TEST(LasCli, ImportCloudReadsAutzenAndSaysItsUnits) {
@@ -98,7 +81,7 @@ TEST(LasCli, Samp11ThroughTheCartesianTemplateIsADsmOverTheGround) {
   EXPECT_NE(r.err.find("e.g. above the centre, 512767.812,5403698.750,404.080"), std::string::npos) << r.err;
 
   const std::string yaml = std::string(PCDP_SOURCE_DIR) + "/pipelines/cartesian_cloud.yaml";
-  const auto args = prepare_args(yaml, dir + "/import");
+  const auto args = test::prepare_args(yaml, dir + "/import");
   ASSERT_FALSE(args.empty());
   r = run_cli(args);
   ASSERT_EQ(r.exit_code, 0) << r.err;

@@ -78,6 +78,23 @@ std::vector<std::string> commit_leftovers(const std::string& parent, const std::
   return out;
 }
 
+std::vector<std::string> prepare_args(const std::string& yaml, const std::string& out_dir) {
+  std::ifstream in(yaml);
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind("# prepare: ", 0) != 0) continue;
+    std::istringstream is(line.substr(11));
+    std::vector<std::string> args;
+    for (std::string a; is >> a;) {
+      if (a.rfind("${SHARED}", 0) == 0) a = std::string(PCDP_SHARED_DIR) + a.substr(9);
+      args.push_back(a);
+    }
+    for (std::size_t i = 0; i + 1 < args.size(); ++i)
+      if (args[i] == "--output-dir") args[i + 1] = out_dir;
+    return args;
+  }
+  return {};
+}
+
 std::string read_text(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   std::ostringstream s;

@@ -25,6 +25,10 @@ CliResult run_cli(const std::vector<std::string>& args);
 void write_text(const std::string& path, const std::string& text);
 std::string read_text(const std::string& path);
 
+/// The "# prepare: ARGS" line of a shipped pipeline (e.g. its import) as arguments, ${SHARED}
+/// replaced and its --output-dir pointed at `out_dir`; empty if the file has none.
+std::vector<std::string> prepare_args(const std::string& yaml, const std::string& out_dir);
+
 /// A small simulated run (vehicle moving with sway, constant-rate nod) with exact truth.
 sim::SimConfig small_sim_config();
 
