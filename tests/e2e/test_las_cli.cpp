@@ -7,8 +7,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 
 #include "pcdp/fusion/elevation.hpp"
 #include "pcdp/io/geotiff.hpp"

@@ -49,8 +49,8 @@ Kurt3DScore score_kurt3d(const Kurt3DScan& s, const std::vector<char>& removed, 
       const double ud = u.dot(d), dd = d.dot(d), det = dd - ud * ud;
       const double at = det > 1e-12 ? (u.dot(p0) * dd - ud * d.dot(p0)) / det : NAN;
       const bool off_line = !(std::fabs(r1 - at) <= 0.05);
-      const auto close_across = [&](std::size_t j) { return ok[j] && std::fabs(rg[j] - r1) <= 0.2; };
-      const bool rough = !close_across(i - W) && !close_across(i + W);
+      const auto far_across = [&](std::size_t j) { return ok[j] && std::fabs(rg[j] - r1) > 0.2; };
+      const bool rough = far_across(i - W) && far_across(i + W);
       std::size_t& n = !off_line ? sc.on_line : rough ? sc.veils : sc.flat;
       std::size_t& m = !off_line ? sc.on_line_removed : rough ? sc.veils_removed : sc.flat_removed;
       ++n;

@@ -26,8 +26,8 @@ Kurt3DScan read_kurt3d_scan(const std::string& path);
 struct Kurt3DScore {
   std::size_t wall = 0, wall_removed = 0;        ///< the right corridor wall (grazing, door recesses)
   std::size_t on_line = 0, on_line_removed = 0;  ///< in a depth jump, on the line through its neighbours
-  std::size_t veils = 0, veils_removed = 0;      ///< in a depth jump, off that line, rough across lines
-  std::size_t flat = 0, flat_removed = 0;        ///< in a depth jump, off that line, flat across lines
+  std::size_t veils = 0, veils_removed = 0;      ///< in a depth jump, off that line, far from both lines beside
+  std::size_t flat = 0, flat_removed = 0;        ///< in a depth jump, off that line, the rest (ambiguous)
   std::size_t planar = 0, planar_removed = 0;    ///< the floor's and ceiling's interior
   std::size_t jumps() const { return on_line + veils + flat; }
   std::size_t jumps_removed() const { return on_line_removed + veils_removed + flat_removed; }
@@ -36,9 +36,11 @@ struct Kurt3DScore {
 /// returns inside a depth jump along their line (neighbours more than 1 m apart, the return more
 /// than 0.2 m from both and between them), in three kinds: on the straight line through the two
 /// neighbours within 5 cm along the beam (a plane seen at grazing incidence meets the scan's fan in
-/// a straight line); off it and rough across lines, more than 0.2 m from the same beam on both
-/// neighbouring lines (a veil: its range follows the footprint's share, not a surface); off it and
-/// flat across lines (either: a veil down a vertical edge, or a wall with recesses). The floor and
+/// a straight line, mostly a plane at grazing incidence); off it and more than 0.2 m from the
+/// returns of the same beam on both neighbouring lines (a veil: its range follows the footprint's
+/// share, not a surface); off it and the rest: within 0.2 m of a neighbouring line's return, or
+/// beside a line with no return there (either: a veil down a vertical edge, or a wall with
+/// recesses). The floor and
 /// ceiling: least-squares planes through the points near y = -0.40 m and y = 2.0 m; their interior
 /// is the points within 2 cm of the plane together with their four scan neighbours (a point at
 /// the foot of the robot or of a wall is not interior: real veils hang there). `scored[i]`

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "pcdp/import/3dtk.hpp"
 #include "pcdp/io/atomic_file.hpp"
 #include "pcdp/io/svg_plot.hpp"
 #include "pcdp/stages/reject_mixed_pixels.hpp"
@@ -25,7 +26,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   const std::string shared = argv[1], out = argv[2];
-  // Kurt3D scan000: mixed pixels removed by the cloud path of reject_mixed_pixels.
+  // Kurt3D scan000: mixed pixels removed by the cloud path of reject_mixed_pixels (clean-cloud).
   std::ifstream in(shared + "/datasets/kurt3d_3dtk_nodding/scan000.3d");
   if (!in) {
     std::fprintf(stderr, "cannot read %s/datasets/kurt3d_3dtk_nodding/scan000.3d\n", shared.c_str());
@@ -38,7 +39,10 @@ int main(int argc, char** argv) {
     const Eigen::Vector3d p(x / 100.0, y / 100.0, z / 100.0);
     if (p.norm() > 0.48 && p.norm() < 32.7) pts.push_back(p);
   }
-  const auto mixed = mixed_pixels_in_cloud(pts, Eigen::Vector3d::Zero(), {}, 0.0087, MixedPixelParams{}, 0.005);
+  // The range image's elevation bands are about the scanner's z (up): our frame, not uos's y.
+  std::vector<Eigen::Vector3d> ours(pts.size());
+  for (std::size_t i = 0; i < pts.size(); ++i) ours[i] = io::uos_to_ours(pts[i] * 100.0);
+  const auto mixed = mixed_pixels_in_cloud(ours, Eigen::Vector3d::Zero(), {}, 0.0087, MixedPixelParams{}, 0.005);
   io::PlotSeries kept{"kept", {}, "#6b6b6b", false, true, 1.3}, removed{"mixed pixels removed", {}, "#d62728", false, true, 1.8};
   std::size_t n_removed = 0;
   for (std::size_t i = 0; i < pts.size(); ++i) {

@@ -36,6 +36,7 @@
 #include "pcdp/io/svg_plot.hpp"
 #include "pcdp/models/occlusion_model.hpp"
 #include "pcdp/stages/reject_mixed_pixels.hpp"
+#include "pcdp/core/cloud_pass.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
 #include "pcdp/pipeline/stage.hpp"
 
@@ -310,6 +311,56 @@ void check_clean_cloud_viewpoint(const CleanCloudArgs& a, const io::PcdTable& t,
                     "scanner (pcd_pipeline's cloud.pcd and returns.pcd) has none: remove mixed pixels in the pipeline "
                     "(stage reject_mixed_pixels), or pass --viewpoint where a static scanner stood");
 }
+
+/// The scanner's frame in the cloud's, from the PCD VIEWPOINT's rotation (qw qx qy qz): x forward,
+/// y left, z up, the scan plane x-y at nod 0. It gives each point its bearing and nod (organized)
+/// or its azimuth and elevation in the range image (unorganized). 1 0 0 0, the PCD default, is a
+/// scanner whose z is the cloud's z.
+Eigen::Quaterniond clean_cloud_orientation(const CleanCloudArgs& a, const io::PcdHeader& h) {
+  if (!a.orientation.empty()) {
+    std::vector<double> v;
+    const auto err = parse_number_list(a.orientation, 4, v);
+    const Eigen::Quaterniond rot = err ? Eigen::Quaterniond(0, 0, 0, 0) : Eigen::Quaterniond(v[0], v[1], v[2], v[3]);
+    if (err || !(std::isfinite(rot.norm()) && rot.norm() > 1e-9))
+      throw ConfigError("clean-cloud: --orientation '" + a.orientation +
+                        "' must be a quaternion qw,qx,qy,qz, not all zero (it " + (err ? *err : std::string("is zero")) + ")");
+    return rot.normalized();
+  }
+  const double* q = h.viewpoint;
+  const Eigen::Quaterniond rot(q[3], q[4], q[5], q[6]);
+  if (!(std::isfinite(rot.norm()) && rot.norm() > 1e-9))
+    throw InputError(a.input + ": VIEWPOINT's rotation (qw qx qy qz = " + std::to_string(q[3]) + " " + std::to_string(q[4]) + " " +
+                     std::to_string(q[5]) + " " + std::to_string(q[6]) +
+                     ") is not a rotation: it must be the scanner's orientation in the cloud's frame (1 0 0 0 for the same), "
+                     "or pass --orientation qw,qx,qy,qz");
+  return rot.normalized();
+}
+
+/// An organized PCD (HEIGHT > 1) is a scan in order: row k is scan line k, column b beam b (a
+/// nodding 2-D scanner stores one line per row), as the PCL filter MixedPixelRemoval reads it
+/// (pcdp/core/cloud_pass.hpp). The stage then runs as in a pipeline, along the lines and across
+/// them. The sensor is unknown: transceiver separation 0 (the amplitude test both ways), the
+/// default divergence and a SICK's range sigma, as for an unorganized cloud.
+std::vector<char> mixed_pixels_in_organized_pcd(const io::PcdHeader& h, const std::vector<Eigen::Vector3d>& pts,
+                                                const std::vector<float>& amp, const Eigen::Vector3d& vp,
+                                                const Eigen::Quaterniond& rot) {
+  CartesianCloud c;
+  c.width = static_cast<std::size_t>(h.width);
+  c.height = static_cast<std::size_t>(h.height);
+  c.points.resize(pts.size());
+  for (std::size_t i = 0; i < pts.size(); ++i) c.points[i] = pts[i].cast<float>();
+  c.intensity = amp;
+  c.origin = vp;
+  c.orientation = rot;
+  Pass pass = pass_from_cloud(c);
+  SensorParams s;
+  s.range_sigma = 0.0053;
+  s.transceiver_separation = 0.0;
+  reject_mixed_pixels(pass, MixedPixelParams{}, s);
+  std::vector<char> mixed(pts.size(), 0);
+  for (std::size_t i = 0; i < pts.size(); ++i) mixed[i] = pass.label[i] == Label::kMixedPixel;
+  return mixed;
+}
 }  // namespace
 
 int cmd_clean_cloud(const CleanCloudArgs& a) {
@@ -345,7 +396,11 @@ int cmd_clean_cloud(const CleanCloudArgs& a) {
     for (std::size_t i = 0; i < n; ++i) amp[i] = static_cast<float>(col(k, i));
   }
   check_clean_cloud_viewpoint(a, t, pts, vp);
-  const std::vector<char> mixed = mixed_pixels_in_cloud(pts, vp, amp, a.resolution, MixedPixelParams{}, 0.0053);
+  const Eigen::Quaterniond rot = clean_cloud_orientation(a, t.header);
+  const bool organized = t.header.height > 1 && t.header.width * t.header.height == n;
+  const std::vector<char> mixed =
+      organized ? mixed_pixels_in_organized_pcd(t.header, pts, amp, vp, rot)
+                : mixed_pixels_in_cloud(pts, vp, amp, a.resolution, MixedPixelParams{}, 0.0053, CloudAngles::kSpherical, rot);
   // Write kept (and removed) points, committed as a set: a PCD with every field of the input; PLY
   // and LAS with map coordinates (x y z + map_origin), the amplitude and the label when present.
   const int il = t.header.field_index("label");
@@ -386,9 +441,16 @@ int cmd_clean_cloud(const CleanCloudArgs& a) {
   const std::uint64_t kept = write(kept_tmp, false, out_fmt);
   const std::uint64_t removed = a.removed.empty() ? n - kept : write(removed_tmp, true, removed_fmt);
   staged.commit();
-  if (!a.quiet)
-    std::printf("%s: %zu points, %llu mixed pixels removed (viewpoint %g %g %g, resolution %g rad) -> %s\n", a.input.c_str(), n,
-                static_cast<unsigned long long>(removed), vp.x(), vp.y(), vp.z(), a.resolution, a.output.c_str());
+  if (!a.quiet) {
+    char how[96];
+    if (organized)
+      std::snprintf(how, sizeof how, "organized, %llu lines of %llu beams", static_cast<unsigned long long>(t.header.height),
+                    static_cast<unsigned long long>(t.header.width));
+    else
+      std::snprintf(how, sizeof how, "resolution %g rad", a.resolution);
+    std::printf("%s: %zu points, %llu mixed pixels removed (viewpoint %g %g %g, %s) -> %s\n", a.input.c_str(), n,
+                static_cast<unsigned long long>(removed), vp.x(), vp.y(), vp.z(), how, a.output.c_str());
+  }
   return 0;
 }
 

@@ -36,6 +36,7 @@ struct AmplitudeModelArgs {
 int cmd_amplitude_model(const EdgeParams& e, const AmplitudeModelArgs& a);
 struct CleanCloudArgs {
   std::string input, output, removed, viewpoint;
+  std::string orientation;     ///< "qw,qx,qy,qz": the scanner's frame in the cloud's (default: the PCD VIEWPOINT's)
   double resolution = 0.0087;  ///< rad, about the scan's angular step
   bool quiet = false;
 };

@@ -103,7 +103,9 @@ int main(int argc, char** argv) {
   clean->add_option("-o,--output", cc.output, "cleaned cloud (all input fields)")->required()->check(output_path);
   clean->add_option("--removed", cc.removed, "also write the removed points here")->check(output_path);
   clean->add_option("--viewpoint", cc.viewpoint, "sensor position x,y,z in the cloud's frame (default: the PCD VIEWPOINT)");
-  clean->add_option("--resolution", cc.resolution, "angular step of the scan, rad")->capture_default_str();
+  clean->add_option("--orientation", cc.orientation,
+                    "scanner frame (x forward, y left, z up) in the cloud's, as a quaternion qw,qx,qy,qz (default: the PCD VIEWPOINT's)");
+  clean->add_option("--resolution", cc.resolution, "angular step of the scan, rad (unorganized clouds; an organized PCD, HEIGHT > 1, is read as lines of beams)")->capture_default_str();
   clean->add_flag("-q,--quiet", cc.quiet, "print nothing but errors");
 
   std::string cr_csv;

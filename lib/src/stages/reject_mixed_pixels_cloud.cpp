@@ -52,10 +52,7 @@ std::vector<char> mixed_pixels_in_cloud(const std::vector<Eigen::Vector3d>& poin
   }
   // No spike test here (MixedPixelParams::spikes): a band of the range image interleaves the
   // returns of neighbouring scan lines, so a return nearer than its two neighbours in the band is
-  // often just the nearer of two interleaved lines. On Kurt3D scan000 it removed 120 more
-  // points, 3 of them isolated in a depth jump; of twelve looked at, six sat in bands alternating
-  // between two lines' ranges (3.15 2.92 3.15 2.92 m) and one was a post interleaved with the
-  // wall behind it.
+  // often just the nearer of two interleaved lines (bands alternating between two lines' ranges).
   std::vector<char> along(n, 0), across(n, 0), smooth_along(n, 0), smooth_across(n, 0);
   for (auto& [k, seq] : rows) {
     std::sort(seq.begin(), seq.end(), [&](std::size_t a, std::size_t b) { return az[a] < az[b]; });
