@@ -133,11 +133,25 @@ TEST(Kurt3D, CleanCloudReadsAnOrganizedPcdAsLinesAndTheViewpointsRotationAndKeep
   write(dir + "/turned_unsaid.pcd", 1, true, "0 0 0 1 0 0 0");
   const test::Kurt3DScore unsaid = test::score_kurt3d(scan, removed_by(dir + "/turned_unsaid.pcd", out), scan.valid);
   const test::Kurt3DScore tur = test::score_kurt3d(scan, turned, scan.valid);
+  const auto differ = [](const std::vector<char>& a, const std::vector<char>& b) {
+    std::size_t d = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) d += (a[i] != 0) != (b[i] != 0);
+    return d;
+  };
   // --orientation says it where the PCD does not: the same points go.
   std::ostringstream q;
   q.precision(17);
   q << turn.w() << "," << turn.x() << "," << turn.y() << "," << turn.z();
-  EXPECT_EQ(removed_by(dir + "/turned_unsaid.pcd", out, {"--orientation", q.str()}), turned);
+  EXPECT_EQ(differ(removed_by(dir + "/turned_unsaid.pcd", out, {"--orientation", q.str()}), turned), 0u);
+  // Organized and turned, the VIEWPOINT saying how: the organized result (the bearings and nods
+  // come from the scanner's frame, the tests from ranges and points).
+  const std::vector<char> org_mask = removed_by(dir + "/organized.pcd", out);
+  write(dir + "/organized_turned.pcd", test::Kurt3DScan::kLines, true, vp.str());
+  EXPECT_LE(differ(removed_by(dir + "/organized_turned.pcd", out), org_mask), 5u);
+  // --unorganized reads the organized file as the unorganized cloud it also is.
+  const std::vector<char> uno_mask = removed_by(dir + "/unorganized.pcd", out);
+  EXPECT_EQ(differ(removed_by(dir + "/organized.pcd", out, {"--unorganized"}), uno_mask), 0u);
+  EXPECT_NE(out.find("resolution 0.0087 rad"), std::string::npos) << out;
   std::cout << "Kurt3D scan 0 through clean-cloud, organized / unorganized / unorganized turned with its VIEWPOINT / turned "
                "without: wall "
             << org.wall_removed << " / " << uno.wall_removed << " / " << tur.wall_removed << " / " << unsaid.wall_removed << " of "
@@ -148,6 +162,9 @@ TEST(Kurt3D, CleanCloudReadsAnOrganizedPcdAsLinesAndTheViewpointsRotationAndKeep
             << unsaid.planar_removed << " of " << org.planar << "\n";
   for (const auto* sc : {&org, &uno, &tur}) {
     ASSERT_GT(sc->wall, 500u);
+    ASSERT_GT(sc->on_line, 50u);
+    ASSERT_GT(sc->veils, 25u);
+    ASSERT_GT(sc->planar, 5000u);
     EXPECT_LE(static_cast<double>(sc->wall_removed), 0.10 * static_cast<double>(sc->wall));  // the wall is not gutted
     EXPECT_LE(static_cast<double>(sc->on_line_removed), 0.15 * static_cast<double>(sc->on_line));
     EXPECT_GE(static_cast<double>(sc->veils_removed), 0.8 * static_cast<double>(sc->veils));
@@ -156,8 +173,9 @@ TEST(Kurt3D, CleanCloudReadsAnOrganizedPcdAsLinesAndTheViewpointsRotationAndKeep
   EXPECT_LE(std::abs(static_cast<long>(tur.wall_removed) - static_cast<long>(uno.wall_removed)), 3);
   EXPECT_GT(unsaid.wall_removed, 3 * uno.wall_removed);  // the orientation matters
 
-  // An organized cloud needs the scanner's orientation: a VIEWPOINT whose rotation is no rotation
-  // is an input error naming the file and the field, and nothing is written.
+  // Every cloud needs the scanner's orientation: a VIEWPOINT whose rotation is no rotation is an
+  // input error naming the file and the field, and nothing is written; a malformed --orientation
+  // is a configuration error found before any file is read.
   write(dir + "/bad.pcd", test::Kurt3DScan::kLines, false, "0 0 0 0 0 0 0");
   const auto r = run_cli({"clean-cloud", dir + "/bad.pcd", "-o", dir + "/bad.kept.pcd"});
   EXPECT_EQ(r.exit_code, 3) << r.err;
@@ -167,4 +185,7 @@ TEST(Kurt3D, CleanCloudReadsAnOrganizedPcdAsLinesAndTheViewpointsRotationAndKeep
   EXPECT_EQ(r2.exit_code, 2) << r2.err;
   EXPECT_NE(r2.err.find("clean-cloud: --orientation '1,0,0' must be a quaternion qw,qx,qy,qz"), std::string::npos) << r2.err;
   EXPECT_FALSE(std::filesystem::exists(dir + "/bad.kept.pcd"));
+  const auto r3 = run_cli({"clean-cloud", dir + "/no_such.pcd", "-o", dir + "/bad.kept.pcd", "--orientation", "0,0,0,0"});
+  EXPECT_EQ(r3.exit_code, 2) << r3.err;
+  EXPECT_NE(r3.err.find("not all zero (it is zero or too large)"), std::string::npos) << r3.err;
 }

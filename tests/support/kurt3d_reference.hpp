@@ -36,7 +36,7 @@ struct Kurt3DScore {
 /// returns inside a depth jump along their line (neighbours more than 1 m apart, the return more
 /// than 0.2 m from both and between them), in three kinds: on the straight line through the two
 /// neighbours within 5 cm along the beam (a plane seen at grazing incidence meets the scan's fan in
-/// a straight line, mostly a plane at grazing incidence); off it and more than 0.2 m from the
+/// a straight line: mostly such planes); off it and more than 0.2 m from the
 /// returns of the same beam on both neighbouring lines (a veil: its range follows the footprint's
 /// share, not a surface); off it and the rest: within 0.2 m of a neighbouring line's return, or
 /// beside a line with no return there (either: a veil down a vertical edge, or a wall with

@@ -42,7 +42,7 @@ int main(int argc, char** argv) {
   // The range image's elevation bands are about the scanner's z (up): our frame, not uos's y.
   std::vector<Eigen::Vector3d> ours(pts.size());
   for (std::size_t i = 0; i < pts.size(); ++i) ours[i] = io::uos_to_ours(pts[i] * 100.0);
-  const auto mixed = mixed_pixels_in_cloud(ours, Eigen::Vector3d::Zero(), {}, 0.0087, MixedPixelParams{}, 0.005);
+  const auto mixed = mixed_pixels_in_cloud(ours, Eigen::Vector3d::Zero(), {}, 0.0087, MixedPixelParams{}, 0.0053);  // as clean-cloud
   io::PlotSeries kept{"kept", {}, "#6b6b6b", false, true, 1.3}, removed{"mixed pixels removed", {}, "#d62728", false, true, 1.8};
   std::size_t n_removed = 0;
   for (std::size_t i = 0; i < pts.size(); ++i) {

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <sstream>
 #include <thread>
 
@@ -312,23 +313,29 @@ void check_clean_cloud_viewpoint(const CleanCloudArgs& a, const io::PcdTable& t,
                     "(stage reject_mixed_pixels), or pass --viewpoint where a static scanner stood");
 }
 
-/// The scanner's frame in the cloud's, from the PCD VIEWPOINT's rotation (qw qx qy qz): x forward,
-/// y left, z up, the scan plane x-y at nod 0. It gives each point its bearing and nod (organized)
-/// or its azimuth and elevation in the range image (unorganized). 1 0 0 0, the PCD default, is a
-/// scanner whose z is the cloud's z.
-Eigen::Quaterniond clean_cloud_orientation(const CleanCloudArgs& a, const io::PcdHeader& h) {
-  if (!a.orientation.empty()) {
-    std::vector<double> v;
-    const auto err = parse_number_list(a.orientation, 4, v);
-    const Eigen::Quaterniond rot = err ? Eigen::Quaterniond(0, 0, 0, 0) : Eigen::Quaterniond(v[0], v[1], v[2], v[3]);
-    if (err || !(std::isfinite(rot.norm()) && rot.norm() > 1e-9))
-      throw ConfigError("clean-cloud: --orientation '" + a.orientation +
-                        "' must be a quaternion qw,qx,qy,qz, not all zero (it " + (err ? *err : std::string("is zero")) + ")");
-    return rot.normalized();
-  }
+/// `--orientation` as a rotation, or none when not given (ConfigError, exit 2, when malformed:
+/// checked before any file is read).
+std::optional<Eigen::Quaterniond> clean_cloud_orientation_option(const CleanCloudArgs& a) {
+  if (a.orientation.empty()) return std::nullopt;
+  std::vector<double> v;
+  const auto err = parse_number_list(a.orientation, 4, v);
+  const Eigen::Quaterniond rot = err ? Eigen::Quaterniond(0, 0, 0, 0) : Eigen::Quaterniond(v[0], v[1], v[2], v[3]);
+  if (err || !(std::isfinite(rot.norm()) && rot.norm() > 1e-9))
+    throw ConfigError("clean-cloud: --orientation '" + a.orientation + "' must be a quaternion qw,qx,qy,qz of finite numbers, not all zero (it " +
+                      (err ? *err : std::string("is zero or too large")) + ")");
+  return rot.normalized();
+}
+
+/// The scanner's frame in the cloud's (x forward, y left, z up, the scan plane x-y at nod 0):
+/// `--orientation`, else the PCD VIEWPOINT's rotation (qw qx qy qz). It gives each point its
+/// bearing and nod (organized) or its azimuth and elevation in the range image (unorganized).
+/// 1 0 0 0, the PCD default, is a scanner whose z is the cloud's z.
+Eigen::Quaterniond clean_cloud_orientation(const CleanCloudArgs& a, const io::PcdHeader& h,
+                                           const std::optional<Eigen::Quaterniond>& option) {
+  if (option) return *option;
   const double* q = h.viewpoint;
   const Eigen::Quaterniond rot(q[3], q[4], q[5], q[6]);
-  if (!(std::isfinite(rot.norm()) && rot.norm() > 1e-9))
+  if (!(rot.norm() > 1e-9))
     throw InputError(a.input + ": VIEWPOINT's rotation (qw qx qy qz = " + std::to_string(q[3]) + " " + std::to_string(q[4]) + " " +
                      std::to_string(q[5]) + " " + std::to_string(q[6]) +
                      ") is not a rotation: it must be the scanner's orientation in the cloud's frame (1 0 0 0 for the same), "
@@ -340,7 +347,8 @@ Eigen::Quaterniond clean_cloud_orientation(const CleanCloudArgs& a, const io::Pc
 /// nodding 2-D scanner stores one line per row), as the PCL filter MixedPixelRemoval reads it
 /// (pcdp/core/cloud_pass.hpp). The stage then runs as in a pipeline, along the lines and across
 /// them. The sensor is unknown: transceiver separation 0 (the amplitude test both ways), the
-/// default divergence and a SICK's range sigma, as for an unorganized cloud.
+/// default divergence (4 mrad) and a SICK's range sigma, as the PCL filter. The points enter
+/// relative to the viewpoint, so float32 keeps their ranges exact in georeferenced coordinates.
 std::vector<char> mixed_pixels_in_organized_pcd(const io::PcdHeader& h, const std::vector<Eigen::Vector3d>& pts,
                                                 const std::vector<float>& amp, const Eigen::Vector3d& vp,
                                                 const Eigen::Quaterniond& rot) {
@@ -348,9 +356,9 @@ std::vector<char> mixed_pixels_in_organized_pcd(const io::PcdHeader& h, const st
   c.width = static_cast<std::size_t>(h.width);
   c.height = static_cast<std::size_t>(h.height);
   c.points.resize(pts.size());
-  for (std::size_t i = 0; i < pts.size(); ++i) c.points[i] = pts[i].cast<float>();
+  for (std::size_t i = 0; i < pts.size(); ++i) c.points[i] = (pts[i] - vp).cast<float>();
   c.intensity = amp;
-  c.origin = vp;
+  c.origin = Eigen::Vector3d::Zero();
   c.orientation = rot;
   Pass pass = pass_from_cloud(c);
   SensorParams s;
@@ -366,6 +374,7 @@ std::vector<char> mixed_pixels_in_organized_pcd(const io::PcdHeader& h, const st
 int cmd_clean_cloud(const CleanCloudArgs& a) {
   if (a.output.empty()) throw ConfigError("clean-cloud: --output is required");
   if (!(a.resolution > 0.0 && a.resolution < 0.5)) throw ConfigError("clean-cloud: --resolution must be in (0, 0.5) rad");
+  const std::optional<Eigen::Quaterniond> orientation_option = clean_cloud_orientation_option(a);
   const io::CloudFormat out_fmt = io::cloud_format_of(a.output, "clean-cloud --output");
   const io::CloudFormat removed_fmt = a.removed.empty() ? out_fmt : io::cloud_format_of(a.removed, "clean-cloud --removed");
   io::StagedFiles staged;  // checked and locked before the work
@@ -396,8 +405,8 @@ int cmd_clean_cloud(const CleanCloudArgs& a) {
     for (std::size_t i = 0; i < n; ++i) amp[i] = static_cast<float>(col(k, i));
   }
   check_clean_cloud_viewpoint(a, t, pts, vp);
-  const Eigen::Quaterniond rot = clean_cloud_orientation(a, t.header);
-  const bool organized = t.header.height > 1 && t.header.width * t.header.height == n;
+  const Eigen::Quaterniond rot = clean_cloud_orientation(a, t.header, orientation_option);
+  const bool organized = !a.unorganized && t.header.height > 1 && t.header.width > 1 && t.header.width * t.header.height == n;
   const std::vector<char> mixed =
       organized ? mixed_pixels_in_organized_pcd(t.header, pts, amp, vp, rot)
                 : mixed_pixels_in_cloud(pts, vp, amp, a.resolution, MixedPixelParams{}, 0.0053, CloudAngles::kSpherical, rot);
@@ -444,12 +453,13 @@ int cmd_clean_cloud(const CleanCloudArgs& a) {
   if (!a.quiet) {
     char how[96];
     if (organized)
-      std::snprintf(how, sizeof how, "organized, %llu lines of %llu beams", static_cast<unsigned long long>(t.header.height),
-                    static_cast<unsigned long long>(t.header.width));
+      std::snprintf(how, sizeof how, "organized, %llu lines of %llu beams%s", static_cast<unsigned long long>(t.header.height),
+                    static_cast<unsigned long long>(t.header.width), a.resolution_given ? "; --resolution not used" : "");
     else
       std::snprintf(how, sizeof how, "resolution %g rad", a.resolution);
-    std::printf("%s: %zu points, %llu mixed pixels removed (viewpoint %g %g %g, %s) -> %s\n", a.input.c_str(), n,
-                static_cast<unsigned long long>(removed), vp.x(), vp.y(), vp.z(), how, a.output.c_str());
+    std::printf("%s: %zu points, %llu mixed pixels removed (viewpoint %g %g %g, orientation %g %g %g %g, %s) -> %s\n",
+                a.input.c_str(), n, static_cast<unsigned long long>(removed), vp.x(), vp.y(), vp.z(), rot.w(), rot.x(), rot.y(),
+                rot.z(), how, a.output.c_str());
   }
   return 0;
 }

@@ -38,6 +38,8 @@ struct CleanCloudArgs {
   std::string input, output, removed, viewpoint;
   std::string orientation;     ///< "qw,qx,qy,qz": the scanner's frame in the cloud's (default: the PCD VIEWPOINT's)
   double resolution = 0.0087;  ///< rad, about the scan's angular step
+  bool resolution_given = false;
+  bool unorganized = false;    ///< read an organized PCD as an unorganized cloud (a range camera, a spinning lidar)
   bool quiet = false;
 };
 int cmd_clean_cloud(const CleanCloudArgs& a);

@@ -105,7 +105,9 @@ int main(int argc, char** argv) {
   clean->add_option("--viewpoint", cc.viewpoint, "sensor position x,y,z in the cloud's frame (default: the PCD VIEWPOINT)");
   clean->add_option("--orientation", cc.orientation,
                     "scanner frame (x forward, y left, z up) in the cloud's, as a quaternion qw,qx,qy,qz (default: the PCD VIEWPOINT's)");
-  clean->add_option("--resolution", cc.resolution, "angular step of the scan, rad (unorganized clouds; an organized PCD, HEIGHT > 1, is read as lines of beams)")->capture_default_str();
+  auto* clean_res = clean->add_option("--resolution", cc.resolution, "angular step of the scan, rad (unorganized clouds; an organized PCD, HEIGHT > 1, is read as lines of beams)")->capture_default_str();
+  clean->add_flag("--unorganized", cc.unorganized,
+                  "read an organized PCD as an unorganized cloud (its rows are not the lines of a 2-D scanner: a range camera, a spinning lidar)");
   clean->add_flag("-q,--quiet", cc.quiet, "print nothing but errors");
 
   std::string cr_csv;
@@ -230,7 +232,10 @@ int main(int argc, char** argv) {
     if (*calr) return cli::cmd_calibrate_range(cr_csv);
     if (*calm) return cli::cmd_calibrate_mount(cm_args, cm_scans);
     if (*ebud) return cli::cmd_error_budget(eb_args, eb_svg, eb_csv);
-    if (*clean) return cli::cmd_clean_cloud(cc);
+    if (*clean) {
+      cc.resolution_given = clean_res->count() > 0;
+      return cli::cmd_clean_cloud(cc);
+    }
     if (*amp) return cli::cmd_amplitude_model(edge, am);
     if (*plan) return cli::cmd_plan_nod(np, np_csv);
     if (*simulate) return cli::cmd_simulate(scene, sim_out, sim_quiet);
