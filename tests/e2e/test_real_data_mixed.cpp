@@ -185,6 +185,11 @@ TEST(Kurt3D, CleanCloudReadsAnOrganizedPcdAsLinesAndTheViewpointsRotationAndKeep
   EXPECT_EQ(r2.exit_code, 2) << r2.err;
   EXPECT_NE(r2.err.find("clean-cloud: --orientation '1,0,0' must be a quaternion qw,qx,qy,qz"), std::string::npos) << r2.err;
   EXPECT_FALSE(std::filesystem::exists(dir + "/bad.kept.pcd"));
+  // `import cloud` takes the VIEWPOINT as the sensor pose: the same rule.
+  const auto ri = run_cli({"import", "cloud", dir + "/bad.pcd", "--output-dir", dir + "/bad_import"});
+  EXPECT_EQ(ri.exit_code, 3) << ri.err;
+  EXPECT_NE(ri.err.find("bad.pcd: VIEWPOINT's rotation (qw qx qy qz = 0.000 0.000 0.000 0.000) is not a rotation"), std::string::npos) << ri.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/bad_import"));
   const auto r3 = run_cli({"clean-cloud", dir + "/no_such.pcd", "-o", dir + "/bad.kept.pcd", "--orientation", "0,0,0,0"});
   EXPECT_EQ(r3.exit_code, 2) << r3.err;
   EXPECT_NE(r3.err.find("not all zero (it is zero or too large)"), std::string::npos) << r3.err;

@@ -53,7 +53,8 @@ ImportedScans import_octomap(const std::vector<std::string>& files, const Import
 
 /// Cartesian PCD (any encoding), PLY (ascii, binary_little_endian) or LAS 1.2-1.4 (pcdp/io/las.hpp;
 /// chosen by the "LASF" signature; .laz refused) clouds, one scan each. The sensor pose is the PCD
-/// VIEWPOINT, or `viewpoint` (x, y, z; identity rotation) when given; PLY and LAS have none (0,0,0).
+/// VIEWPOINT (a rotation of all zeros is an InputError), or `viewpoint` (x, y, z; identity rotation)
+/// when given; PLY and LAS have none (0,0,0).
 /// LAS coordinates are scaled to metres (opt.unit_scale), intensity becomes the amplitude.
 /// Throws ConfigError when the viewpoint is implausible (see ImportOptions::max_range).
 ImportedScans import_cloud(const std::vector<std::string>& files, const Eigen::Vector3d* viewpoint,
