@@ -88,11 +88,15 @@ TEST(Kurt3D, CleanCloudReadsAnOrganizedPcdAsLinesAndTheViewpointsRotationAndKeep
   // `rotated`: the points in a frame turned so that the scanner's forward axis is the cloud's z
   // (as in the 3DTK file's own frame, whose z is forward): the range image's pole straight ahead.
   const Eigen::Quaterniond turn(Eigen::AngleAxisd(-kPi / 2, Eigen::Vector3d::UnitY()));
-  const auto write = [&](const std::string& path, std::size_t height, bool rotated, const std::string& viewpoint) {
+  // `shift`: added to every point, the coordinates written as float64 (a georeferenced cloud).
+  const auto write = [&](const std::string& path, std::size_t height, bool rotated, const std::string& viewpoint,
+                         const Eigen::Vector3d& shift = Eigen::Vector3d::Zero()) {
+    const bool f8 = !shift.isZero();
     std::ostringstream o;
-    o << "VERSION 0.7\nFIELDS x y z index\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\nWIDTH " << scan.points.size() / height
-      << "\nHEIGHT " << height << "\nVIEWPOINT " << viewpoint << "\nPOINTS " << scan.points.size() << "\nDATA ascii\n";
-    o.precision(9);
+    o << "VERSION 0.7\nFIELDS x y z index\nSIZE " << (f8 ? "8 8 8" : "4 4 4") << " 4\nTYPE F F F U\nCOUNT 1 1 1 1\nWIDTH "
+      << scan.points.size() / height << "\nHEIGHT " << height << "\nVIEWPOINT " << viewpoint << "\nPOINTS " << scan.points.size()
+      << "\nDATA ascii\n";
+    o.precision(f8 ? 17 : 9);
     for (std::size_t i = 0; i < scan.points.size(); ++i) {
       if (!scan.valid[i]) {
         o << "nan nan nan " << i << "\n";
@@ -100,6 +104,7 @@ TEST(Kurt3D, CleanCloudReadsAnOrganizedPcdAsLinesAndTheViewpointsRotationAndKeep
       }
       Eigen::Vector3d p = io::uos_to_ours(scan.points[i] * 100.0);
       if (rotated) p = turn * p;
+      p += shift;
       o << p.x() << " " << p.y() << " " << p.z() << " " << i << "\n";
     }
     test::write_text(path, o.str());
@@ -148,6 +153,14 @@ TEST(Kurt3D, CleanCloudReadsAnOrganizedPcdAsLinesAndTheViewpointsRotationAndKeep
   const std::vector<char> org_mask = removed_by(dir + "/organized.pcd", out);
   write(dir + "/organized_turned.pcd", test::Kurt3DScan::kLines, true, vp.str());
   EXPECT_LE(differ(removed_by(dir + "/organized_turned.pcd", out), org_mask), 5u);
+  // Georeferenced: the organized scan 500 km away, the VIEWPOINT there; float64 in, the same result.
+  const Eigen::Vector3d far(512767.8, 5403698.8, 404.1);
+  std::ostringstream fvp;
+  fvp.precision(17);
+  fvp << far.x() << " " << far.y() << " " << far.z() << " 1 0 0 0";
+  write(dir + "/organized_far.pcd", test::Kurt3DScan::kLines, false, fvp.str(), far);
+  EXPECT_LE(differ(removed_by(dir + "/organized_far.pcd", out, {"--resolution", "0.01"}), org_mask), 5u);
+  EXPECT_NE(out.find("organized, 226 lines of 360 beams; --resolution not used"), std::string::npos) << out;
   // --unorganized reads the organized file as the unorganized cloud it also is.
   const std::vector<char> uno_mask = removed_by(dir + "/unorganized.pcd", out);
   EXPECT_EQ(differ(removed_by(dir + "/organized.pcd", out, {"--unorganized"}), uno_mask), 0u);
@@ -190,6 +203,8 @@ TEST(Kurt3D, CleanCloudReadsAnOrganizedPcdAsLinesAndTheViewpointsRotationAndKeep
   EXPECT_EQ(ri.exit_code, 3) << ri.err;
   EXPECT_NE(ri.err.find("bad.pcd: VIEWPOINT's rotation (qw qx qy qz = 0.000 0.000 0.000 0.000) is not a rotation"), std::string::npos) << ri.err;
   EXPECT_FALSE(std::filesystem::exists(dir + "/bad_import"));
+  const auto rv = run_cli({"import", "cloud", dir + "/bad.pcd", "--viewpoint", "0,0,0", "--output-dir", dir + "/bad_import"});
+  EXPECT_EQ(rv.exit_code, 0) << rv.err;  // --viewpoint is the whole pose: position and the identity rotation
   const auto r3 = run_cli({"clean-cloud", dir + "/no_such.pcd", "-o", dir + "/bad.kept.pcd", "--orientation", "0,0,0,0"});
   EXPECT_EQ(r3.exit_code, 2) << r3.err;
   EXPECT_NE(r3.err.find("not all zero (it is zero or too large)"), std::string::npos) << r3.err;

@@ -335,7 +335,7 @@ Eigen::Quaterniond clean_cloud_orientation(const CleanCloudArgs& a, const io::Pc
   if (option) return *option;
   const double* q = h.viewpoint;
   const Eigen::Quaterniond rot(q[3], q[4], q[5], q[6]);
-  if (!(rot.norm() > 1e-9))
+  if (!(rot.norm() > 1e-9 && std::isfinite(rot.norm())))
     throw InputError(a.input + ": VIEWPOINT's rotation (qw qx qy qz = " + std::to_string(q[3]) + " " + std::to_string(q[4]) + " " +
                      std::to_string(q[5]) + " " + std::to_string(q[6]) +
                      ") is not a rotation: it must be the scanner's orientation in the cloud's frame (1 0 0 0 for the same), "
@@ -374,7 +374,15 @@ std::vector<char> mixed_pixels_in_organized_pcd(const io::PcdHeader& h, const st
 int cmd_clean_cloud(const CleanCloudArgs& a) {
   if (a.output.empty()) throw ConfigError("clean-cloud: --output is required");
   if (!(a.resolution > 0.0 && a.resolution < 0.5)) throw ConfigError("clean-cloud: --resolution must be in (0, 0.5) rad");
+  // The options' numbers are checked before any file is read (exit 2).
   const std::optional<Eigen::Quaterniond> orientation_option = clean_cloud_orientation_option(a);
+  std::optional<Eigen::Vector3d> viewpoint_option;
+  if (!a.viewpoint.empty()) {
+    std::vector<double> v;
+    if (const auto err = parse_number_list(a.viewpoint, 3, v))
+      throw ConfigError("clean-cloud: --viewpoint '" + a.viewpoint + "' must be x,y,z in metres (it " + *err + ")");
+    viewpoint_option = Eigen::Vector3d(v[0], v[1], v[2]);
+  }
   const io::CloudFormat out_fmt = io::cloud_format_of(a.output, "clean-cloud --output");
   const io::CloudFormat removed_fmt = a.removed.empty() ? out_fmt : io::cloud_format_of(a.removed, "clean-cloud --removed");
   io::StagedFiles staged;  // checked and locked before the work
@@ -384,12 +392,7 @@ int cmd_clean_cloud(const CleanCloudArgs& a) {
   const int ix = t.header.field_index("x"), iy = t.header.field_index("y"), iz = t.header.field_index("z");
   if (ix < 0 || iy < 0 || iz < 0) throw InputError(a.input + ": needs fields x, y, z");
   Eigen::Vector3d vp(t.header.viewpoint[0], t.header.viewpoint[1], t.header.viewpoint[2]);
-  if (!a.viewpoint.empty()) {
-    std::vector<double> v;
-    if (const auto err = parse_number_list(a.viewpoint, 3, v))
-      throw ConfigError("clean-cloud: --viewpoint '" + a.viewpoint + "' must be x,y,z in metres (it " + *err + ")");
-    vp = {v[0], v[1], v[2]};
-  }
+  if (viewpoint_option) vp = *viewpoint_option;
   const std::size_t n = t.header.points;
   const auto col = [&](int k, std::size_t i) {
     const auto& f = t.header.fields[static_cast<std::size_t>(k)];

@@ -105,7 +105,7 @@ int main(int argc, char** argv) {
   clean->add_option("--viewpoint", cc.viewpoint, "sensor position x,y,z in the cloud's frame (default: the PCD VIEWPOINT)");
   clean->add_option("--orientation", cc.orientation,
                     "scanner frame (x forward, y left, z up) in the cloud's, as a quaternion qw,qx,qy,qz (default: the PCD VIEWPOINT's)");
-  auto* clean_res = clean->add_option("--resolution", cc.resolution, "angular step of the scan, rad (unorganized clouds; an organized PCD, HEIGHT > 1, is read as lines of beams)")->capture_default_str();
+  auto* clean_res = clean->add_option("--resolution", cc.resolution, "angular step of the scan, rad (unorganized clouds; an organized PCD, HEIGHT > 1 and WIDTH > 1, is read as lines of beams unless --unorganized)")->capture_default_str();
   clean->add_flag("--unorganized", cc.unorganized,
                   "read an organized PCD as an unorganized cloud (its rows are not the lines of a 2-D scanner: a range camera, a spinning lidar)");
   clean->add_flag("-q,--quiet", cc.quiet, "print nothing but errors");

@@ -388,12 +388,13 @@ ImportedScans import_cloud(const std::vector<std::string>& files, const Eigen::V
       }
       const double* vp = t.header.viewpoint;
       const Eigen::Quaterniond rot(vp[3], vp[4], vp[5], vp[6]);
-      if (!viewpoint && !(rot.norm() > 1e-9))  // not a rotation: normalizing would silently make it the identity
+      const bool is_rotation = rot.norm() > 1e-9 && std::isfinite(rot.norm());
+      if (!viewpoint && !is_rotation)  // not a rotation: normalizing would silently make it the identity
         throw InputError(f + ": VIEWPOINT's rotation (qw qx qy qz = " + fmt_num(vp[3]) + " " + fmt_num(vp[4]) + " " + fmt_num(vp[5]) +
                          " " + fmt_num(vp[6]) + ") is not a rotation: it must be the sensor's orientation in the cloud's frame "
                          "(1 0 0 0 for the same), or pass --viewpoint X,Y,Z (the identity rotation)");
       s.T.translation() = Eigen::Vector3d(vp[0], vp[1], vp[2]);
-      s.T.linear() = (rot.norm() > 1e-9 ? rot.normalized() : Eigen::Quaterniond::Identity()).toRotationMatrix();
+      s.T.linear() = (is_rotation ? rot.normalized() : Eigen::Quaterniond::Identity()).toRotationMatrix();
       // A cloud of a georeferenced run (pcd_pipeline's cloud.pcd, "# map_origin X Y Z") stores its
       // points, and its VIEWPOINT, relative to that origin: back to map coordinates, so that the
       // passes, the poses and a --viewpoint are all in the map frame.
