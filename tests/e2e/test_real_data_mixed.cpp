@@ -135,6 +135,13 @@ TEST(Kurt3D, CleanCloudReadsAnOrganizedPcdAsLinesAndTheViewpointsRotationAndKeep
   vp << "0 0 0 " << turn.w() << " " << turn.x() << " " << turn.y() << " " << turn.z();
   write(dir + "/turned.pcd", 1, true, vp.str());
   const std::vector<char> turned = removed_by(dir + "/turned.pcd", out);
+  // The outputs carry the pose they were cleaned with, so cleaning or importing them again needs
+  // nothing more.
+  for (const std::string f : {"/turned.pcd.kept.pcd", "/turned.pcd.removed.pcd"}) {
+    const io::PcdHeader h = io::read_pcd_header(dir + f);
+    const double want[7] = {0, 0, 0, turn.w(), turn.x(), turn.y(), turn.z()};
+    for (int k = 0; k < 7; ++k) EXPECT_NEAR(h.viewpoint[k], want[k], 1e-12) << f << " VIEWPOINT[" << k << "]";
+  }
   write(dir + "/turned_unsaid.pcd", 1, true, "0 0 0 1 0 0 0");
   const test::Kurt3DScore unsaid = test::score_kurt3d(scan, removed_by(dir + "/turned_unsaid.pcd", out), scan.valid);
   const test::Kurt3DScore tur = test::score_kurt3d(scan, turned, scan.valid);

@@ -434,6 +434,7 @@ int cmd_clean_cloud(const CleanCloudArgs& a) {
     {
       io::PcdWriter w(tmp, t.header.fields);
       w.set_map_origin(t.header.map_origin[0], t.header.map_origin[1], t.header.map_origin[2]);  // x y z stay relative to it
+      w.set_viewpoint({vp.x(), vp.y(), vp.z(), rot.w(), rot.x(), rot.y(), rot.z()});  // the pose the cloud was cleaned with
       std::vector<std::uint8_t> row(w.point_bytes());
       for (std::size_t i = 0; i < n; ++i) {
         if ((mixed[i] != 0) != want_mixed) continue;

@@ -509,8 +509,13 @@ void PcdWriter::close(std::uint64_t height) {
   for (const auto& f : fields_) hs << ' ' << f.type;
   hs << "\nCOUNT";
   for (const auto& f : fields_) hs << ' ' << f.count;
-  hs << "\nWIDTH " << points_ / height << "\nHEIGHT " << height << "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << points_
-     << "\nDATA binary\n";
+  hs << "\nWIDTH " << points_ / height << "\nHEIGHT " << height << "\nVIEWPOINT";
+  for (const double v : viewpoint_) {
+    char b[32];  // %.17g: round trips, and the default stays "0 0 0 1 0 0 0"
+    std::snprintf(b, sizeof b, " %.17g", v);
+    hs << b;
+  }
+  hs << "\nPOINTS " << points_ << "\nDATA binary\n";
   const std::string header = hs.str();
 
   std::FILE* out = std::fopen(path_.c_str(), "wb");

@@ -6,6 +6,7 @@
 // wrong; it also keeps PCL out of the core library. Round-trip tests check it against PCL.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -78,6 +79,9 @@ class PcdWriter {
     map_origin_[1] = y;
     map_origin_[2] = z;
   }
+  /// The VIEWPOINT to write: tx ty tz qw qx qy qz (the sensor's pose in the cloud's frame);
+  /// 0 0 0 1 0 0 0 unless set.
+  void set_viewpoint(const double (&vp)[7]) { std::copy(vp, vp + 7, viewpoint_); }
   /// Writes the final file (WIDTH = points, HEIGHT = 1 unless `height` divides it).
   void close(std::uint64_t height = 1);
   std::uint64_t points() const { return points_; }
@@ -89,6 +93,7 @@ class PcdWriter {
   std::size_t point_bytes_ = 0;
   std::uint64_t points_ = 0;
   double map_origin_[3] = {0, 0, 0};
+  double viewpoint_[7] = {0, 0, 0, 1, 0, 0, 0};
   std::FILE* body_ = nullptr;
 };
 
