@@ -1,5 +1,7 @@
 #include "kurt3d_reference.hpp"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
@@ -81,6 +83,18 @@ Kurt3DScore score_kurt3d(const Kurt3DScan& s, const std::vector<char>& removed, 
       }
     }
   return sc;
+}
+
+void expect_kurt3d_bars(const Kurt3DScore& sc, double min_veils, const std::string& what) {
+  const auto share = [](std::size_t n, std::size_t of) { return static_cast<double>(n) / static_cast<double>(of); };
+  ASSERT_GT(sc.wall, 500u) << what;
+  ASSERT_GT(sc.on_line, 50u) << what;
+  ASSERT_GT(sc.veils, 25u) << what;
+  ASSERT_GT(sc.planar, 5000u) << what;
+  EXPECT_LE(share(sc.wall_removed, sc.wall), 0.10) << what << ": the wall is not gutted";
+  EXPECT_LE(share(sc.on_line_removed, sc.on_line), 0.15) << what << ": planes at grazing incidence stay";
+  EXPECT_GE(share(sc.veils_removed, sc.veils), min_veils) << what << ": the veils go";
+  EXPECT_LE(share(sc.planar_removed, sc.planar), 0.01) << what << ": the 1 % budget";
 }
 
 }  // namespace pcdp::test

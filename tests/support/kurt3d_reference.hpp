@@ -47,4 +47,10 @@ struct Kurt3DScore {
 /// false leaves point i out (a return the filter never saw).
 Kurt3DScore score_kurt3d(const Kurt3DScan& s, const std::vector<char>& removed, const std::vector<char>& scored);
 
+/// The bars every path that knows the scanner's frame must meet (gtest failures, each class first
+/// asserted non-empty): the wall loses at most 10 %, the planes on the line at most 15 %, the
+/// floor and ceiling at most 1 % (the false-rejection budget), and at least `min_veils` of the
+/// veils go. `what` names the path in the messages.
+void expect_kurt3d_bars(const Kurt3DScore& sc, double min_veils, const std::string& what);
+
 }  // namespace pcdp::test
