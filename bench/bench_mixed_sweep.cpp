@@ -256,6 +256,7 @@ SweepSetting make_sweep_setting(int index) {
 struct Miss {
   double range, gap, inline_dev, across_dev, near_share, near_refl, far_refl;
   std::string near_kind, far_kind;
+  double height;  ///< m, the kept point's height above the true top surface at its position
 };
 
 struct Result {
@@ -409,7 +410,7 @@ Result run_setting(const SweepSetting& st) {
         if (i + nb < p.size()) dac = std::max(dac, dev(i + nb));
         if (g_dump_every > 0 && (res.misses.size() % static_cast<std::size_t>(g_dump_every)) == 0) dump("miss", i);
         res.misses.push_back({ri, f.far - f.near, din, dac, f.near_power_share, f.near_reflectivity, f.far_reflectivity,
-                              st.kind_of(f.near_object), st.kind_of(f.far_object)});
+                              st.kind_of(f.near_object), st.kind_of(f.far_object), p.z[i] - c.scene.top_height(p.x[i], p.y[i])});
       } else if (t == Label::kKept && l != Label::kNoReturn && l != Label::kOutOfRange && l != Label::kNoPose) {
         ++res.valid;
         if (is_filter_label(l)) {
@@ -564,6 +565,12 @@ void print_misses(const Result& r) {
     gap_big += g > 1.0;
   }
   std::printf("    gap < 0.3 m: %d, gap > 1 m: %d\n", gap_small, gap_big);
+  // What a kept miss does to a terrain map: its height above the true top where it lies (below
+  // it: on a vertical face or under an overhang, which a 2.5-D map's top surface does not show).
+  int h[5] = {};
+  for (const auto& x : m) h[x.height < -0.05 ? 0 : x.height <= 0.05 ? 1 : x.height <= 0.1 ? 2 : x.height <= 0.3 ? 3 : 4]++;
+  std::printf("    height above the true top where the point lies: below -0.05 m %d, within 0.05 m %d, 0.05-0.1 m %d, 0.1-0.3 m %d, above 0.3 m %d\n",
+              h[0], h[1], h[2], h[3], h[4]);
 }
 
 void json_row(FILE* f, const Result& r, const char* name) {
