@@ -293,24 +293,30 @@ void throw_rule_broken(const OptionSchema& schema, const OptionRule& rule, const
 
 std::string describe_schema(const OptionSchema& schema) {
   std::ostringstream os;
-  std::size_t w = 6;
-  for (const auto& s : schema) w = std::max(w, s.name.size());
-  os << std::left << std::setw(static_cast<int>(w) + 2) << "option" << std::setw(8) << "type"
-     << std::setw(14) << "default" << std::setw(20) << "bounds" << std::setw(9) << "unit"
-     << "description\n";
-  for (const auto& s : schema) {
+  const auto default_text = [](const OptionSpec& s) {
     std::string def = s.required ? "(required)" : format_value(s.default_value);
-    if (def.empty()) def = "\"\"";
-    os << std::left << std::setw(static_cast<int>(w) + 2) << s.name << std::setw(8)
-       << option_type_name(s.type) << std::setw(14) << def << std::setw(20) << s.bounds_text()
-       << std::setw(9) << (s.unit.empty() ? "-" : s.unit) << s.doc << "\n";
+    return def.empty() ? std::string("\"\"") : def;
+  };
+  // Each column as wide as its widest entry, plus two spaces: wide bounds never run into the unit.
+  std::size_t w = 6, wd = 7, wb = 6, wu = 4;
+  for (const auto& s : schema) {
+    w = std::max(w, s.name.size());
+    wd = std::max(wd, default_text(s).size());
+    wb = std::max(wb, s.bounds_text().size());
+    wu = std::max(wu, s.unit.size());
   }
+  const auto col = [](std::size_t n) { return std::setw(static_cast<int>(n) + 2); };
+  os << std::left << col(w) << "option" << std::setw(8) << "type" << col(wd) << "default" << col(wb) << "bounds"
+     << col(wu) << "unit" << "description\n";
+  for (const auto& s : schema)
+    os << std::left << col(w) << s.name << std::setw(8) << option_type_name(s.type) << col(wd) << default_text(s)
+       << col(wb) << s.bounds_text() << col(wu) << (s.unit.empty() ? "-" : s.unit) << s.doc << "\n";
   if (!schema.rules.empty()) {
     os << "\nrules\n";
     for (const auto& r : schema.rules) os << "  " << r.formula << (r.why.empty() ? "" : ": " + r.why) << "\n";
   }
   if (!schema.retired.empty()) {
-    os << "\nno longer options (a configuration that sets one is refused)\n";
+    os << "\nrefused keys (a configuration that sets one fails, naming what to do instead)\n";
     for (const auto& [name, what_now] : schema.retired) os << "  " << name << ": " << what_now << "\n";
   }
   return os.str();
@@ -336,7 +342,7 @@ std::string schema_markdown(const OptionSchema& schema) {
     for (const auto& r : schema.rules) os << "- `" << r.formula << "`" << (r.why.empty() ? "" : ": " + r.why) << "\n";
   }
   if (!schema.retired.empty()) {
-    os << "\nNo longer options (a configuration that sets one is refused):\n\n";
+    os << "\nRefused keys (a configuration that sets one fails, naming what to do instead):\n\n";
     for (const auto& [name, what_now] : schema.retired) os << "- `" << name << "`: " << what_now << "\n";
   }
   return os.str();

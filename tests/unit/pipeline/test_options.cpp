@@ -227,7 +227,21 @@ TEST(OptionsBinder, DeclaringAnOptionTwiceIsALogicError) {
   o.retire("old", "fixed at 1");
   EXPECT_THROW(o.retire("old", "again"), std::logic_error);
   EXPECT_THROW(o.add("old", &P::hi, bounds(0, 1), "m", "back"), std::logic_error);
-  EXPECT_NE(describe_schema(o.schema()).find("no longer options (a configuration that sets one is refused)\n  old: fixed at 1\n"),
+  EXPECT_NE(describe_schema(o.schema()).find("refused keys (a configuration that sets one fails, naming what to do instead)\n  old: fixed at 1\n"),
             std::string::npos);
   EXPECT_NE(schema_markdown(o.schema()).find("- `old`: fixed at 1\n"), std::string::npos);
+}
+
+TEST(OptionsBinder, DescribeKeepsWideColumnsApart) {
+  using P = BinderParams;
+  Options<P> o;
+  o.add("lo", &P::lo, bounds(-1e9, 1e9), "m", "wide bounds")
+      .add("hi", &P::hi, bounds(-3.141592654, 3.141592654), "rad", "an angle");
+  const std::string d = describe_schema(o.schema());
+  // Every row's bounds end at least two spaces before its unit, and the units start in one column.
+  const std::size_t m = d.find("1000000000]  "), r = d.find("3.141592654]  ");
+  ASSERT_NE(m, std::string::npos) << d;
+  ASSERT_NE(r, std::string::npos) << d;
+  const auto column = [&](std::size_t at, const char* unit) { return d.find(unit, at) - d.rfind('\n', at); };
+  EXPECT_EQ(column(m, " m "), column(r, " rad ")) << d;
 }
