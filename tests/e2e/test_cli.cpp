@@ -889,6 +889,14 @@ TEST(Rplidar, ImportRefusesBrokenCsvNamingFileLineAndRule) {
   auto r = with("beams.csv", beams.substr(0, l2 + 1) + "0,1,0.0123684751,abc,12\n" + beams.substr(beams.find('\n', l2 + 1) + 1));
   EXPECT_EQ(r.exit_code, 3);
   EXPECT_NE(r.err.find("beams.csv:3: column 'range_m': 'abc' is not a finite number"), std::string::npos) << r.err;
+  // A negative intensity or one beyond single precision: refused here, naming the row, not by run
+  // naming a pass file.
+  r = with("beams.csv", beams.substr(0, l2 + 1) + "0,1,0.0123684751,0.646749973,-1\n" + beams.substr(beams.find('\n', l2 + 1) + 1));
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_NE(r.err.find("beams.csv:3: intensity -1 is negative"), std::string::npos) << r.err;
+  r = with("beams.csv", beams.substr(0, l2 + 1) + "0,1,0.0123684751,1e300,12\n" + beams.substr(beams.find('\n', l2 + 1) + 1));
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_NE(r.err.find("beams.csv:3: range_m 1e300 is beyond"), std::string::npos) << r.err;
   r = with("servo.csv", "bag_t_ns,servo_deg\n1748602824940924080,89\n1748602825141670871,200\n");
   EXPECT_EQ(r.exit_code, 3);
   EXPECT_NE(r.err.find("servo.csv:3: servo_deg 200 is outside 0 .. 180"), std::string::npos) << r.err;

@@ -201,3 +201,30 @@ TEST(LasCli, MergeRefusesAnOutputThatIsNotATiff) {
             std::string::npos)
       << r.err;
 }
+
+TEST(LasCli, CleanCloudToLasNamesAStrayPointAndCountsTheUnwritable) {
+  const std::string dir = test::fresh_dir();
+  // 20 points on a line 10 m ahead, then one more: far away (1e38 m) or with an infinite x.
+  const auto cloud = [&](const std::string& name, const std::string& last) {
+    std::string body;
+    for (int i = 0; i < 20; ++i) body += "10 " + std::to_string(0.05 * i) + " 0\n";
+    body += last + "\n";
+    test::write_text(dir + "/" + name,
+                     "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 21\nHEIGHT 1\n"
+                     "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 21\nDATA ascii\n" + body);
+    return dir + "/" + name;
+  };
+  auto r = run_cli({"clean-cloud", cloud("far.pcd", "1e38 0 0"), "-o", dir + "/far.las"});
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_NE(r.err.find("far.pcd: points "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(" and 20 lie 9.99999968e+37 m apart along x"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("spans at most 4,294 km"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/far.las"));
+  r = run_cli({"clean-cloud", cloud("inf.pcd", "inf 0 0"), "-o", dir + "/inf.las"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("1 point(s) with a non-finite coordinate are not in the LAS output"), std::string::npos) << r.err;
+  // The PLY keeps it, so says nothing.
+  r = run_cli({"clean-cloud", dir + "/inf.pcd", "-o", dir + "/inf.ply"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err.find("not in the LAS output"), std::string::npos) << r.err;
+}

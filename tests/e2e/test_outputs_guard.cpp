@@ -34,6 +34,7 @@ SimRun small_run(const std::string& tag) {
   r.dir = test::fresh_dir(tag);
   const sim::SimResult s = sim::simulate(r.cfg);
   sim::write_run(s, r.cfg, r.dir);
+  sim::write_truth(s, r.cfg, r.dir);  // for evaluate
   r.yaml = r.dir + "/pipeline.yaml";
   test::write_text(r.yaml, test::pipeline_yaml(r.cfg, r.dir, r.dir + "/out") + "  - type: fuse_elevation\n");
   return r;
@@ -82,6 +83,42 @@ TEST(OutputsGuard, AnOutputNamedLikeAnInputIsRefusedBeforeAnyWork) {
   EXPECT_EQ(test::read_text(a), before_a);
   EXPECT_EQ(test::read_text(a_state), before_state);
   EXPECT_EQ(test::read_text(r.yaml), yaml);
+}
+
+TEST(OutputsGuard, AnInputInTheOutputFolderUnderAProductsNameIsRefusedAndKept) {
+  const SimRun r = small_run("inputs");
+  fs::create_directories(r.dir + "/z");
+  fs::copy_file(r.dir + "/pass_000.pcd", r.dir + "/z/cloud.pcd");
+  fs::copy_file(r.dir + "/pass_000.pcd", r.dir + "/z/pass_000.pcd");
+  const std::string scan = test::read_text(r.dir + "/pass_000.pcd");
+  struct Case {
+    std::vector<std::string> args;
+    std::string says;
+  };
+  const std::vector<Case> cases = {
+      {{"run", r.yaml, "-q", "--set", "input.scans=" + r.dir + "/z/cloud.pcd", "--output-dir", r.dir + "/z"}, "(cloud.pcd)"},
+      {{"import", "cloud", r.dir + "/z/pass_000.pcd", "--output-dir", r.dir + "/z"}, "(pass_000.pcd)"},
+      {{"clean-cloud", r.dir + "/z/cloud.pcd", "-o", r.dir + "/z/./cloud.pcd"}, "is an input of the command"},
+      {{"evaluate", "--truth", r.dir, "--run", r.dir + "/nosuch"}, "no such folder"},
+  };
+  for (const auto& c : cases) {
+    std::string line;
+    for (const auto& a : c.args) line += a + " ";
+    const auto res = run_cli(c.args);
+    EXPECT_EQ(res.exit_code, c.args[0] == "evaluate" ? 3 : 2) << line << res.err;
+    EXPECT_NE(res.err.find(c.says), std::string::npos) << line << res.err;
+  }
+  EXPECT_EQ(test::read_text(r.dir + "/z/cloud.pcd"), scan);
+  EXPECT_EQ(test::read_text(r.dir + "/z/pass_000.pcd"), scan);
+  EXPECT_FALSE(fs::exists(r.dir + "/nosuch"));
+  // A new run drops the earlier run's evaluation.json (it scored that set); the user's files stay.
+  ASSERT_EQ(run_cli({"run", r.yaml, "-q"}).exit_code, 0);
+  ASSERT_EQ(run_cli({"evaluate", "--truth", r.dir, "--run", r.dir + "/out", "-q"}).exit_code, 0);
+  ASSERT_TRUE(fs::exists(r.dir + "/out/evaluation.json"));
+  test::write_text(r.dir + "/out/notes.txt", "mine");
+  ASSERT_EQ(run_cli({"run", r.yaml, "-q"}).exit_code, 0);
+  EXPECT_FALSE(fs::exists(r.dir + "/out/evaluation.json"));
+  EXPECT_TRUE(fs::exists(r.dir + "/out/notes.txt"));
 }
 
 TEST(OutputsGuard, ARunWithoutTheGridDropsAnEarlierMergeState) {

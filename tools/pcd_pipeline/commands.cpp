@@ -55,6 +55,22 @@ LoadOptions load_options(const RunArgs& a) {
   return o;
 }
 
+/// An output file named on the command line must not be one of `others` (the command's inputs, or
+/// another of its outputs), the same file by path or by inode: writing it would destroy that one.
+/// ConfigError (exit 2) before any work.
+void check_not_input(const std::string& option, const std::string& path, const std::vector<std::string>& others,
+                     const std::string& role = "an input of the command") {
+  for (const auto& in : others) {
+    std::error_code e1, e2, e3;
+    const bool same_inode = std::filesystem::equivalent(path, in, e1) && !e1;
+    // Absolute first: the canonical form of a relative path none of whose parts exists stays relative.
+    const auto a = std::filesystem::weakly_canonical(std::filesystem::absolute(path, e2), e2),
+               b = std::filesystem::weakly_canonical(std::filesystem::absolute(in, e3), e3);
+    if (same_inode || (!e2 && !e3 && !a.empty() && a == b))
+      throw ConfigError(option + " '" + path + "' is " + role + " ('" + in + "'): it would be overwritten");
+  }
+}
+
 /// An output file named on the command line: its extension must be one the command writes
 /// (case-insensitive), and it must not be one of the command's inputs (the same file by path or
 /// by inode), which writing would destroy. ConfigError (exit 2) before any work.
@@ -69,13 +85,7 @@ void check_output_file(const std::string& option, const std::string& path, const
     list += (list.empty() ? "" : ", ") + e;
   }
   if (!ok) throw ConfigError(option + " '" + path + "': the file must end in " + list);
-  for (const auto& in : inputs) {
-    std::error_code e1, e2, e3;
-    const bool same_inode = std::filesystem::equivalent(path, in, e1) && !e1;
-    const auto a = std::filesystem::weakly_canonical(path, e2), b = std::filesystem::weakly_canonical(in, e3);
-    if (same_inode || (!e2 && !e3 && !a.empty() && a == b))
-      throw ConfigError(option + " '" + path + "' is an input of the command ('" + in + "'): it would be overwritten");
-  }
+  check_not_input(option, path, inputs);
 }
 }  // namespace
 
@@ -132,6 +142,7 @@ int cmd_stages() {
 int cmd_simulate(const std::string& scene, const std::string& output_dir, bool quiet) {
   const sim::SimConfig cfg = load_scene(scene);
   io::StagedOutputs staged(output_dir);  // locked and checked before the work; committed as a set
+  staged.protect_inputs({scene});
   const sim::SimResult r = sim::simulate(cfg);
   const auto files = sim::write_run(r, cfg, staged.staging_dir());
   sim::write_truth(r, cfg, staged.staging_dir());
@@ -159,6 +170,8 @@ int cmd_simulate(const std::string& scene, const std::string& output_dir, bool q
 }
 
 int cmd_evaluate(const std::string& truth, const std::string& run, const std::string& json, bool quiet) {
+  if (!std::filesystem::is_directory(run))
+    throw InputError("evaluate --run '" + run + "': no such folder (give the output folder of a run, with its returns.pcd)");
   NoiseModel noise;
   const std::string scene = (std::filesystem::path(truth) / "truth" / "scene.yaml").string();
   if (std::filesystem::exists(scene)) {
@@ -182,10 +195,14 @@ int cmd_evaluate(const std::string& truth, const std::string& run, const std::st
 }
 
 int cmd_plan_nod(const NodPlanParams& p, const std::string& csv) {
-  if (p.height <= 0 || p.sample_distance <= 0 || p.sweep_period <= 0 || p.max_rate <= 0 || p.encoder_resolution < 0 ||
-      p.speed < 0 || p.dead_zone_time < 0)
+  // Written so that NaN fails every test (a comparison with NaN is false); infinities are refused too.
+  const auto finite = [](double v) { return std::isfinite(v); };
+  if (!(p.height > 0) || !(p.sample_distance > 0) || !(p.sweep_period > 0) || !(p.max_rate > 0) ||
+      !(p.encoder_resolution >= 0) || !(p.speed >= 0) || !(p.dead_zone_time >= 0) ||
+      !(finite(p.height) && finite(p.sample_distance) && finite(p.sweep_period) && finite(p.max_rate) &&
+        finite(p.encoder_resolution) && finite(p.speed) && finite(p.dead_zone_time)))
     throw ConfigError("plan-nod: height, sample distance, sweep period and maximum rate must be positive; speed, "
-                      "dead-zone time and encoder resolution must not be negative");
+                      "dead-zone time and encoder resolution must not be negative; all must be finite numbers");
   const NodPlan plan = plan_nod(p);
   constexpr double kDeg = 57.29577951308232;
   if (!csv.empty()) io::write_file_atomic(csv, nod_plan_csv(plan, p));
@@ -213,8 +230,11 @@ int cmd_plan_nod(const NodPlanParams& p, const std::string& csv) {
 int cmd_amplitude_model(const EdgeParams& e, const AmplitudeModelArgs& a) {
   if (!(e.d1 > 0) || !(e.d2 > e.d1))
     throw ConfigError("amplitude-model: need 0 < d1 < d2 (got d1 = " + format_value(e.d1) + ", d2 = " + format_value(e.d2) + ")");
-  if (e.p1 < 0 || e.p2 < 0 || e.alpha <= 0 || e.separation < 0 || a.points < 2)
-    throw ConfigError("amplitude-model: need p1, p2, separation >= 0, alpha > 0 and --points >= 2");
+  if (!(e.p1 >= 0) || !(e.p2 >= 0) || !(e.alpha > 0) || !(e.separation >= 0) || a.points < 2 || a.points > 1000000 ||
+      !std::isfinite(e.d2) || !std::isfinite(e.p1) || !std::isfinite(e.p2) || !std::isfinite(e.alpha) ||
+      !std::isfinite(e.separation) || !std::isfinite(e.theta) || !std::isfinite(a.min_amplitude))
+    throw ConfigError("amplitude-model: need finite numbers with p1, p2, separation >= 0, alpha > 0 and 2 <= --points <= 1000000");
+  if (!a.profile_csv.empty() && !a.theta_csv.empty()) check_not_input("amplitude-model --theta-csv", a.theta_csv, {a.profile_csv}, "another output of the command");
   constexpr double kDeg = 57.29577951308232;
   const ProfileMinimum m = profile_minimum(e);
   std::printf("Liu et al. 2005 amplitude model: d1 = %g m, d2 = %g m, P1 = %g, P2 = %g, alpha = %g rad, s - q = %g m, theta = %g deg\n",
@@ -385,6 +405,8 @@ int cmd_clean_cloud(const CleanCloudArgs& a) {
   }
   const io::CloudFormat out_fmt = io::cloud_format_of(a.output, "clean-cloud --output");
   const io::CloudFormat removed_fmt = a.removed.empty() ? out_fmt : io::cloud_format_of(a.removed, "clean-cloud --removed");
+  check_not_input("clean-cloud --output", a.output, {a.input});
+  if (!a.removed.empty()) check_not_input("clean-cloud --removed", a.removed, {a.input});
   io::StagedFiles staged;  // checked and locked before the work
   const std::string kept_tmp = staged.add("clean-cloud --output", a.output);
   const std::string removed_tmp = a.removed.empty() ? std::string() : staged.add("clean-cloud --removed", a.removed);
@@ -416,17 +438,37 @@ int cmd_clean_cloud(const CleanCloudArgs& a) {
   // Write kept (and removed) points, committed as a set: a PCD with every field of the input; PLY
   // and LAS with map coordinates (x y z + map_origin), the amplitude and the label when present.
   const int il = t.header.field_index("label");
+  std::uint64_t not_in_las = 0;  // points with a non-finite coordinate: LAS has no "no point"
   const auto write = [&](const std::string& tmp, bool want_mixed, io::CloudFormat fmt) {
     std::uint64_t count = 0;
     if (fmt != io::CloudFormat::kPcd) {
       io::CloudOut c;
       const Eigen::Vector3d origin(t.header.map_origin[0], t.header.map_origin[1], t.header.map_origin[2]);
+      Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+      std::size_t at_lo[3] = {0, 0, 0}, at_hi[3] = {0, 0, 0};
       for (std::size_t i = 0; i < n; ++i) {
         if ((mixed[i] != 0) != want_mixed) continue;
-        c.xyz.push_back(pts[i] + origin);
+        const Eigen::Vector3d p = pts[i] + origin;
+        c.xyz.push_back(p);
         if (!amp.empty()) c.intensity.push_back(amp[i]);
         if (il >= 0) c.label.push_back(static_cast<std::uint8_t>(std::clamp(col(il, i), 0.0, 255.0)));
+        if (!p.allFinite()) {
+          not_in_las += fmt == io::CloudFormat::kLas;
+          continue;
+        }
+        for (int k = 0; k < 3; ++k) {
+          if (p[k] < lo[k]) lo[k] = p[k], at_lo[k] = i;
+          if (p[k] > hi[k]) hi[k] = p[k], at_hi[k] = i;
+        }
       }
+      // LAS stores millimetres as 32-bit integers about one offset: 4,294 km end to end. A cloud
+      // wider than that is the input's problem (a stray point), named here before anything is written.
+      for (int k = 0; k < 3 && fmt == io::CloudFormat::kLas; ++k)
+        if (hi[k] - lo[k] > 4294967.0)
+          throw InputError(a.input + ": points " + std::to_string(at_lo[k]) + " and " + std::to_string(at_hi[k]) + " lie " +
+                           format_value(hi[k] - lo[k]) + " m apart along " + "xyz"[k] +
+                           ": a LAS file (millimetres as 32-bit integers) spans at most 4,294 km; remove the stray "
+                           "points or write PCD or PLY");
       if (fmt == io::CloudFormat::kLas) io::write_las(tmp, c);
       else io::write_ply(tmp, c);
       return static_cast<std::uint64_t>(c.xyz.size());
@@ -454,6 +496,9 @@ int cmd_clean_cloud(const CleanCloudArgs& a) {
   const std::uint64_t kept = write(kept_tmp, false, out_fmt);
   const std::uint64_t removed = a.removed.empty() ? n - kept : write(removed_tmp, true, removed_fmt);
   staged.commit();
+  if (not_in_las > 0)
+    std::fprintf(stderr, "note: %llu point(s) with a non-finite coordinate are not in the LAS output (LAS has no \"no point\")\n",
+                 static_cast<unsigned long long>(not_in_las));
   if (!a.quiet) {
     char how[96];
     if (organized)
@@ -477,6 +522,11 @@ int cmd_calibrate_range(const std::string& csv) {
   } catch (const InputError& e) {
     throw InputError(csv + ": " + e.what());
   }
+  // What is printed must be pasteable: the sensor block's bounds (config_blocks.cpp) hold k and b.
+  if (!(c.k > 0.5 && c.k <= 2.0) || !(c.b >= -1.0 && c.b <= 1.0))
+    throw InputError(csv + ": the samples give k = " + format_value(c.k) + ", b = " + format_value(c.b) +
+                     " m, outside the sensor block's range_calibration bounds (0.5 < k <= 2, -1 <= b <= 1 m): are the "
+                     "columns 'true' and 'measured' right, in metres, and from one scanner?");
   std::printf("range calibration (Ye & Borenstein eqs. 1-3): true = k * measured + b\n");
   std::printf("  k = %.6f  (standard error %.6f)\n  b = %.5f m  (standard error %.5f m)\n", c.k, c.se_k, c.b, c.se_b);
   std::printf("  %zu samples at %zu distances; residuals of the per-distance means: rms %.2f mm, max %.2f mm\n", c.samples,
@@ -661,10 +711,12 @@ int cmd_docs() {
 }
 
 namespace {
-/// An import owns the pass files and the pose file of its output folder: an earlier import's
+/// An import owns the pass files and the pose file of its output folder (an input among them is
+/// refused: the commit would replace it): an earlier import's
 /// pass_*.pcd (more of them, or another format's) and poses.csv do not stay beside the new set,
 /// where a run's `pass_*.pcd` would read them as passes of this import.
-void own_import_products(io::StagedOutputs& staged, const std::string& out_dir) {
+void own_import_products(io::StagedOutputs& staged, const std::string& out_dir, const std::vector<std::string>& inputs) {
+  staged.protect_inputs(inputs);  // an input named like a product of the folder would be replaced
   std::vector<std::string> names = {"poses.csv"};
   std::error_code ec;
   for (std::filesystem::directory_iterator it(out_dir, ec), end; !ec && it != end; it.increment(ec)) {
@@ -714,7 +766,7 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
     opt.unit_scale = unit_scale;
     if (!nod_origin.empty() && !opt.auto_nod_origin) opt.nod_origin = xyz("--nod-origin", nod_origin);
     io::StagedOutputs staged(out_dir);  // locked and checked before the work; committed as a set
-    own_import_products(staged, out_dir);
+    own_import_products(staged, out_dir, inputs);
     const io::ImportedScans r = format == "octomap" ? io::import_octomap(inputs, opt)
                                                     : io::import_cloud(inputs, have_vp ? &vp : nullptr, opt);
     const std::size_t n = write_passes(r.passes, staged.staging_dir());
@@ -749,7 +801,7 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
   if (poses != "odometry" && poses != "frames")
     throw ConfigError("import 3dtk: --poses must be odometry or frames, not '" + poses + "'");
   io::StagedOutputs staged(out_dir);
-  own_import_products(staged, out_dir);
+  own_import_products(staged, out_dir, inputs);
   const io::Imported3dtk r = io::import_3dtk(inputs, poses == "frames", beams_per_line);
   const std::size_t n = write_passes(r.passes, staged.staging_dir());
   sim::write_pose_csv(r.poses, RpyOrder::kXyz, (std::filesystem::path(staged.staging_dir()) / "poses.csv").string());
@@ -769,7 +821,7 @@ int cmd_import_tilt(const std::string& format, const std::vector<std::string>& i
   if (format == "rplidar" && !(p.scan_topic.empty() && p.tilt_topic.empty() && p.odom_topic.empty() && p.tf_frames.empty()))
     throw ConfigError("import rplidar: --scan-topic, --tilt-topic, --odom-topic and --tf-frames are for rosbag2");
   io::StagedOutputs staged(out_dir);
-  own_import_products(staged, out_dir);
+  own_import_products(staged, out_dir, inputs);
   io::ImportedRosbag2 b;
   if (format == "rplidar")
     b.passes = io::import_rplidar(inputs[0], p.passes);
@@ -803,7 +855,7 @@ int cmd_import_carmen(const std::vector<std::string>& inputs, const std::string&
   if (inputs.size() != 1)
     throw ConfigError("import carmen: expected one log (.log or .log.gz), got " + std::to_string(inputs.size()) + " inputs");
   io::StagedOutputs staged(out_dir);
-  own_import_products(staged, out_dir);
+  own_import_products(staged, out_dir, inputs);
   const io::ImportedCarmen r = io::import_carmen(inputs[0]);
   // One pass per message: enough digits that the files sort in time order.
   const std::size_t digits = std::max<std::size_t>(3, std::to_string(r.passes.size() - 1).size());

@@ -306,6 +306,9 @@ ImportedRosbag2 import_rosbag2(const std::string& path, const Rosbag2ImportParam
       // (An empty scan may carry angle_increment inf: 2 pi / 0 beams.)
       if (!m.ranges.empty() && (!std::isfinite(m.angle_min) || !std::isfinite(m.angle_increment)))
         throw InputError(ref.where() + ": angle_min or angle_increment is not finite");
+      if (m.ranges.size() > 1 && m.angle_increment == 0.0f)
+        throw InputError(ref.where() + ": angle_increment is 0 for " + std::to_string(m.ranges.size()) +
+                         " ranges: every beam would have one bearing");
       if (!m.intensities.empty() && m.intensities.size() != m.ranges.size())
         throw InputError(ref.where() + ": " + std::to_string(m.intensities.size()) + " intensities for " +
                          std::to_string(m.ranges.size()) + " ranges (must be 0 or as many)");
@@ -328,6 +331,9 @@ ImportedRosbag2 import_rosbag2(const std::string& path, const Rosbag2ImportParam
         s.angle.push_back(static_cast<double>(m.angle_min) +
                           static_cast<double>(k) * static_cast<double>(m.angle_increment));
         const float q = m.intensities.empty() ? 0.0f : m.intensities[k];
+        if (q < 0.0f)
+          throw InputError(ref.where() + ": intensities[" + std::to_string(k) + "] = " + std::to_string(q) +
+                           " is negative (an intensity is a received power)");
         s.intensity.push_back(std::isfinite(q) ? q : 0.0f);
       }
       scans.push_back(std::move(s));

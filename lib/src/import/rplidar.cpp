@@ -304,6 +304,13 @@ ImportedRplidar import_rplidar(const std::string& dir, const RplidarImportParams
       if (rng < 0.0)
         throw InputError(beams.path + ":" + std::to_string(beams.line_of[k]) + ": range_m " + beams.rows[k][br] +
                          " is negative");
+      // Pass files hold single precision; an amplitude is a received power, never negative.
+      if (rng > std::numeric_limits<float>::max())
+        throw InputError(beams.path + ":" + std::to_string(beams.line_of[k]) + ": range_m " + beams.rows[k][br] +
+                         " is beyond any scanner's range (and a pass file's single precision)");
+      if (!(q >= 0.0) || q > std::numeric_limits<float>::max())
+        throw InputError(beams.path + ":" + std::to_string(beams.line_of[k]) + ": intensity " + beams.rows[k][bq] +
+                         (q < 0.0 ? " is negative (an intensity is a received power)" : " is beyond a pass file's single precision"));
       ts.angle.push_back(a);
       ts.range.push_back(static_cast<float>(rng));
       ts.intensity.push_back(static_cast<float>(q));

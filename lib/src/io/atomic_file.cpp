@@ -87,6 +87,20 @@ bool is_mount_root(const fs::path& p) {
   return ::lstat(p.c_str(), &me) == 0 && ::stat(p.parent_path().c_str(), &up) == 0 && me.st_dev != up.st_dev;
 }
 
+/// Removes a leftover of this tool (a staging folder or an old set), making its folders writable
+/// first where a copied mode made them read-only; best effort.
+void remove_tree(const fs::path& p) {
+  std::error_code ec;
+  fs::remove_all(p, ec);
+  if (!ec) return;
+  struct stat s {};
+  if (::lstat(p.c_str(), &s) != 0 || !S_ISDIR(s.st_mode)) return;
+  ::chmod(p.c_str(), (s.st_mode & 07777) | S_IRWXU);
+  for (fs::recursive_directory_iterator it(p, ec), end; !ec && it != end; it.increment(ec))
+    if (::lstat(it->path().c_str(), &s) == 0 && S_ISDIR(s.st_mode)) ::chmod(it->path().c_str(), (s.st_mode & 07777) | S_IRWXU);
+  fs::remove_all(p, ec);
+}
+
 /// `<parent>/.<name>.pcdp-<what>`
 std::string beside(const fs::path& target, const std::string& what) {
   return (target.parent_path() / ("." + target.filename().string() + ".pcdp-" + what)).string();
@@ -268,6 +282,11 @@ StagedOutputs::StagedOutputs(std::string dir) : dir_(std::move(dir)) {
     const fs::file_status st = fs::symlink_status(t, ec);
     if (fs::exists(st) && !fs::is_directory(st))
       throw OutputError("output_dir '" + dir_ + "' exists and is not a folder");
+    // A folder its owner made read-only is not to be replaced (the swap itself would only need
+    // its parent to be writable, and would leave the old set, unremovable, beside it).
+    if (fs::exists(st) && ::access(target_.c_str(), W_OK) != 0)
+      throw OutputError("output_dir '" + dir_ + "' is read-only (" + errno_text(errno) +
+                        "); make it writable or choose another folder");
     // Holding the lock, every .<name>.pcdp-* beside the folder is a leftover of a killed run. A
     // set renamed aside (no RENAME_EXCHANGE) whose folder is gone is the complete old set: back.
     const std::string prefix = "." + t.filename().string() + ".pcdp-";
@@ -280,7 +299,7 @@ StagedOutputs::StagedOutputs(std::string dir) : dir_(std::move(dir)) {
       const std::string n = l.filename().string();
       if (n.rfind(prefix + "old-", 0) == 0 && !fs::exists(fs::symlink_status(t, ec)) && std::rename(l.c_str(), t.c_str()) == 0)
         continue;
-      fs::remove_all(l, ec);
+      remove_tree(l);
     }
     staging_ = beside(t, "new-" + pid_text());
     const BlockSignals hold;
@@ -315,9 +334,35 @@ void StagedOutputs::check_replaceable(const std::vector<std::string>& filenames)
   }
 }
 
+void StagedOutputs::owns(std::vector<std::string> names) {
+  owned_ = std::move(names);
+  for (const auto& n : owned_) check_inputs(n);
+}
+
+void StagedOutputs::protect_inputs(const std::vector<std::string>& inputs) {
+  std::error_code ec;
+  const fs::path folder = fs::weakly_canonical(target_, ec);
+  for (const auto& in : inputs) {
+    if (in.empty()) continue;
+    std::error_code e2;
+    const fs::path p = fs::weakly_canonical(fs::absolute(in, e2), e2);
+    if (!ec && !e2 && p.parent_path() == folder) inputs_.emplace_back(in, p.filename().string());
+  }
+  for (const auto& n : owned_) check_inputs(n);
+  for (const auto& n : names_) check_inputs(n);
+}
+
+void StagedOutputs::check_inputs(const std::string& name) const {
+  for (const auto& [given, file] : inputs_)
+    if (file == name)
+      throw ConfigError("input '" + given + "' is in the output folder '" + dir_ + "' under the name of an output (" + name +
+                        "): the run would replace it; move the input or choose another output folder");
+}
+
 std::string StagedOutputs::staged_path(const std::string& filename) {
   for (const auto& n : names_)
     if (n == filename) throw std::logic_error("two products named " + filename + " in one run");
+  check_inputs(filename);
   names_.push_back(filename);
   return (fs::path(staging_) / filename).string();
 }
@@ -356,6 +401,7 @@ void StagedOutputs::commit_steps() {
   std::set<std::string> products;
   for (const auto& e : fs::directory_iterator(stage, ec)) products.insert(e.path().filename().string());
   if (ec) fail("cannot list the staging folder " + staging_, ec.value());
+  for (const auto& n : products) check_inputs(n);  // products a command wrote straight into the folder
   const bool had_old = fs::exists(fs::symlink_status(t, ec));
   if (had_old) {
     // A folder is replaced only by a folder (a user's folder named like a product stays).

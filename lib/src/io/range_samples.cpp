@@ -51,6 +51,9 @@ void read_range_samples_csv(const std::string& path, std::vector<double>& y, std
           std::string(end).find_first_not_of(" \t\r") != std::string::npos || !std::isfinite(v[k]))
         throw InputError(path + ":" + std::to_string(lineno) + ": column '" + (k ? "measured" : "true") + "': '" +
                          cells[idx[k]] + "' is not a finite number");
+      if (!(v[k] > 0))
+        throw InputError(path + ":" + std::to_string(lineno) + ": column '" + (k ? "measured" : "true") + "': " +
+                         cells[idx[k]] + " is not a range (ranges are positive distances in metres)");
     }
     y.push_back(v[0]);
     z.push_back(v[1]);

@@ -245,8 +245,13 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   }
   // Every file a pipeline run may write: an earlier run's product that this run does not write
   // (map.ot after write_ot: false, say) does not stay beside the new set.
+  {  // a scan or pose file inside the output folder named like a product would be replaced
+    std::vector<std::string> inputs = cfg.scans;
+    inputs.push_back(cfg.poses);
+    out.protect_inputs(inputs);
+  }
   out.owns({"returns.pcd", "cloud.pcd", "report.json", "elevation.tif", "elevation.state.tif", "elevation.png", "map.bt",
-            "map.ot"});
+            "map.ot", "evaluation.json"});  // evaluate's score of the earlier set is not this set's
   io::ReturnsWriter returns(out.staged_path("returns.pcd"), context_.map_origin);
   io::CloudWriter cloud(out.staged_path("cloud.pcd"), context_.map_origin);
   const std::string report_tmp = out.staged_path("report.json");

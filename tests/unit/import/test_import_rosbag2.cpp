@@ -35,7 +35,8 @@ double tilt_at(long long t) {
 
 /// A bag of 4 s in two .db3 files: /scan (10 Hz, 100 beams), /joint_states (25 Hz, joints "wheel"
 /// and "tilt"), /odom (20 Hz, x = t m, yaw = 0.1 t rad), /battery (Float32, a second number topic).
-std::string make_bag(const std::string& dir) {
+/// `increment` is the scans' angle_increment; `intensity`, when not NaN, every beam's intensity.
+std::string make_bag(const std::string& dir, float increment = 0.03f, float intensity = NAN) {
   const std::vector<std::pair<std::string, std::string>> topics = {{"/scan", "sensor_msgs/msg/LaserScan"},
                                                                    {"/joint_states", "sensor_msgs/msg/JointState"},
                                                                    {"/odom", "nav_msgs/msg/Odometry"},
@@ -69,10 +70,15 @@ std::string make_bag(const std::string& dir) {
   for (long long t = kT0 + 200 * kMs; t < kT0 + 3900 * kMs; t += 100 * kMs) {
     W w;
     w.header();
-    for (float f : {-1.5f, 1.5f, 0.03f, 0.001f, 0.1f, 0.1f, 20.0f}) w.f32(f);
+    for (float f : {-1.5f, 1.5f, increment, 0.001f, 0.1f, 0.1f, 20.0f}) w.f32(f);
     w.put(100, 4);
     for (int k = 0; k < 100; ++k) w.f32(k == 5 ? INFINITY : 2.0f + 0.01f * static_cast<float>(k));
-    w.put(0, 4);  // no intensities
+    if (std::isnan(intensity)) {
+      w.put(0, 4);  // no intensities
+    } else {
+      w.put(100, 4);
+      for (int k = 0; k < 100; ++k) w.f32(intensity);
+    }
     (t < kT0 + 2000 * kMs ? a : b).push_back({1, t, w.b});
   }
   const std::string bag = dir + "/bag";
@@ -119,6 +125,32 @@ TEST(ImportRosbag2, JointStateTiltOdometryPosesAndSplitFiles) {
   EXPECT_NEAR(r.poses.front().stamp, 10.0 - 0.2, 1e-9);
   EXPECT_NEAR(r.poses[40].position.x(), 2.0, 1e-12);
   EXPECT_NEAR(r.poses[40].orientation.z(), std::sin(0.1), 1e-12);
+}
+
+TEST(ImportRosbag2, ScansThatNoPassFileCanHoldAreRefusedNamingTheMessage) {
+  Rosbag2ImportParams p;
+  p.tilt_topic = "/joint_states:tilt";
+  p.passes.geometry.zero = 0;
+  const auto error_of = [&](const std::string& bag) {
+    try {
+      import_rosbag2(bag, p);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  // Every beam at one bearing: a collapsed cloud.
+  const std::string zero = error_of(make_bag(test::fresh_dir(), 0.0f));
+  EXPECT_NE(zero.find("angle_increment is 0 for 100 ranges"), std::string::npos) << zero;
+  EXPECT_NE(zero.find("/scan"), std::string::npos) << zero;
+  // A negative intensity: run would refuse the pass file's amplitude, far from the bag.
+  const std::string neg = error_of(make_bag(test::fresh_dir(), 0.03f, -5.0f));
+  EXPECT_NE(neg.find("intensities[0] = -5"), std::string::npos) << neg;
+  EXPECT_NE(neg.find("/scan"), std::string::npos) << neg;
+  // The same bag with intensities 7 imports, every amplitude 7 or 0 (no return).
+  const ImportedRosbag2 r = import_rosbag2(make_bag(test::fresh_dir(), 0.03f, 7.0f), p);
+  ASSERT_FALSE(r.passes.passes.empty());
+  for (float a : r.passes.passes[0].amplitude) EXPECT_TRUE(a == 7.0f || a == 0.0f) << a;
 }
 
 TEST(ImportRosbag2, TopicChoiceIsExplicitWhenTheBagIsAmbiguous) {

@@ -5,12 +5,14 @@
 #include <algorithm>
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <csignal>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <string>
 
@@ -224,6 +226,95 @@ TEST(CommitHardening, AFolderNamedLikeAProductIsRefusedBeforeTheWork) {
   test::write_text(s.staged_path("elevation.tif"), "new tif");
   EXPECT_THROW(s.commit(), OutputError);  // the commit checks again
   EXPECT_EQ(snapshot(out), old);
+}
+
+TEST(CommitHardening, AnInputNamedLikeAProductIsRefusedBeforeTheWork) {
+  const std::string out = test::fresh_dir() + "/out";
+  make_old_set(out);
+  test::write_text(out + "/pass_000.pcd", "the user's scan");
+  const Snapshot old = snapshot(out);
+  {  // owned after the inputs are named
+    io::StagedOutputs s(out);
+    s.protect_inputs({out + "/pass_000.pcd", out + "/../out/notes.txt"});
+    EXPECT_NO_THROW(s.owns({"returns.pcd", "map.bt"}));
+    EXPECT_THROW(s.owns({"returns.pcd", "pass_000.pcd"}), ConfigError);
+  }
+  {  // named after the products are staged, through another spelling of the folder
+    io::StagedOutputs s(out);
+    test::write_text(s.staged_path("pass_000.pcd"), "new");
+    EXPECT_THROW(s.protect_inputs({fs::path(out).parent_path().string() + "/./out/pass_000.pcd"}), ConfigError);
+  }
+  {  // a product a command writes straight into the staging folder: the commit refuses it
+    io::StagedOutputs s(out);
+    s.protect_inputs({out + "/pass_000.pcd"});
+    test::write_text(s.staging_dir() + "/pass_000.pcd", "new");
+    EXPECT_THROW(s.commit(), ConfigError);
+  }
+  EXPECT_EQ(snapshot(out), old);
+  {  // an input elsewhere, or inside the folder under another name, is no concern
+    io::StagedOutputs s(out);
+    s.protect_inputs({out + "/pass_000.pcd", out + "/mine/cloud.pcd"});
+    test::write_text(s.staged_path("cloud.pcd"), "new");
+    EXPECT_NO_THROW(s.commit());
+  }
+  EXPECT_EQ(test::read_text(out + "/pass_000.pcd"), "the user's scan");
+}
+
+/// Runs `fn` as an unprivileged user (nobody, forked, when this process is root: root may write
+/// into read-only folders); its text is empty on success, else the failure.
+std::string as_unprivileged(const std::string& owned_tree, const std::function<std::string()>& fn) {
+  if (::geteuid() != 0) return fn();
+  for (const auto& e : fs::recursive_directory_iterator(owned_tree)) (void)::lchown(e.path().c_str(), 65534, 65534);
+  (void)::chown(owned_tree.c_str(), 65534, 65534);
+  int fds[2];
+  if (::pipe(fds) != 0) return "pipe failed";
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    ::close(fds[0]);
+    std::string r = (::setgid(65534) == 0 && ::setuid(65534) == 0) ? fn() : "cannot become nobody";
+    if (::write(fds[1], r.data(), r.size()) < 0) r.clear();
+    ::_exit(0);
+  }
+  ::close(fds[1]);
+  std::string r;
+  char buf[256];
+  for (ssize_t n; (n = ::read(fds[0], buf, sizeof buf)) > 0;) r.append(buf, static_cast<std::size_t>(n));
+  ::close(fds[0]);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? r : "the child died";
+}
+
+TEST(CommitHardening, AReadOnlyFolderIsRefusedAndReadOnlyLeftoversAreRemoved) {
+  const std::string base = test::fresh_dir();
+  ::chmod(base.c_str(), 0755);
+  const std::string out = base + "/out";
+  make_old_set(out);
+  // A leftover of a killed run whose folders a copied mode made read-only.
+  fs::create_directories(base + "/.out.pcdp-new-999/sub");
+  test::write_text(base + "/.out.pcdp-new-999/sub/f", "old");
+  const std::string result = as_unprivileged(base, [&]() -> std::string {
+    ::chmod((base + "/.out.pcdp-new-999/sub").c_str(), 0555);
+    ::chmod((base + "/.out.pcdp-new-999").c_str(), 0555);
+    ::chmod(out.c_str(), 0555);
+    try {
+      io::StagedOutputs s(out);
+      return "a read-only output folder was accepted";
+    } catch (const OutputError& e) {
+      if (std::string(e.what()).find("read-only") == std::string::npos) return std::string("message: ") + e.what();
+    }
+    ::chmod(out.c_str(), 0755);
+    try {
+      io::StagedOutputs s(out);
+      test::write_text(s.staged_path("returns.pcd"), "new");
+      s.commit();
+    } catch (const std::exception& e) {
+      return std::string("the writable folder failed: ") + e.what();
+    }
+    return fs::exists(base + "/.out.pcdp-new-999") ? "the read-only leftover stayed" : "";
+  });
+  EXPECT_EQ(result, "");
+  EXPECT_EQ(test::read_text(out + "/returns.pcd"), "new");
 }
 
 TEST(CommitHardening, AProductStagedTwiceIsABug) {

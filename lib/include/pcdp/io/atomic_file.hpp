@@ -66,7 +66,11 @@ class StagedOutputs final {
   /// Names this command owns in the folder (every product it may write, whether or not this run
   /// writes it): the old folder's entries of these names are not carried over to the new set, so a
   /// run that no longer writes map.ot (say) leaves no earlier map.ot beside its new map.bt.
-  void owns(std::vector<std::string> names) { owned_ = std::move(names); }
+  void owns(std::vector<std::string> names);
+  /// The command's input files: one inside the output folder with the name of a product (staged
+  /// or owned) would be replaced by the commit, so that is refused (ConfigError, exit 2, naming the
+  /// input and the folder) here, in owns() and in staged_path(), before the work.
+  void protect_inputs(const std::vector<std::string>& inputs);
   std::string final_path(const std::string& filename) const;
   /// The final paths of everything staged so far.
   std::vector<std::string> final_paths() const;
@@ -86,6 +90,8 @@ class StagedOutputs final {
   std::unique_ptr<OutputLock> lock_;
   std::vector<std::string> names_;
   std::vector<std::string> owned_;
+  std::vector<std::pair<std::string, std::string>> inputs_;  // (as given, file name) of inputs inside the folder
+  void check_inputs(const std::string& name) const;
   void commit_steps();
   int slot_ = -1;  // in the signal cleanup table
   bool committed_ = false;
