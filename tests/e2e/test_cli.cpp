@@ -463,6 +463,20 @@ TEST(Cli, AmplitudeModelPrintsTheProfileAndDrawsIt) {
   res = run_cli({"amplitude-model", "--d1", "10", "--d2", "5"});
   EXPECT_EQ(res.exit_code, 2);
   EXPECT_NE(res.err.find("need 0 < d1 < d2"), std::string::npos);
+  // NaN fails no comparison, so every option is checked to be a finite number; one file is not two outputs.
+  for (const std::vector<std::string> args : {std::vector<std::string>{"amplitude-model", "--p1", "nan"},
+                                               {"amplitude-model", "--separation", "nan"},
+                                               {"amplitude-model", "--points", "100000000"},
+                                               {"plan-nod", "--height", "nan"},
+                                               {"plan-nod", "--speed", "inf"}}) {
+    res = run_cli(args);
+    EXPECT_EQ(res.exit_code, 2) << args[1] << " " << args[2] << res.out;
+    EXPECT_NE(res.err.find("finite"), std::string::npos) << res.err;
+  }
+  res = run_cli({"amplitude-model", "--profile-csv", dir + "/same.csv", "--theta-csv", dir + "/./same.csv"});
+  EXPECT_EQ(res.exit_code, 2);
+  EXPECT_NE(res.err.find("is another output of the command"), std::string::npos) << res.err;
+  EXPECT_FALSE(fs::exists(dir + "/same.csv"));
 }
 
 TEST(Cli, CleanCloudOnARealPcdKeepsEveryFieldAndAccountsForEveryPoint) {
@@ -500,6 +514,16 @@ TEST(Cli, CalibrationAndErrorBudgetCommands) {
   EXPECT_NE(res.err.find("one.csv: range calibration: needs samples at 3 or more distinct true distances, got 1"),
             std::string::npos)
       << res.err;
+  // What it prints must be pasteable: no negative range, no fit outside the sensor block's bounds.
+  test::write_text(dir + "/neg.csv", "true,measured\n1,-1.01\n2,-2.01\n3,-3.02\n");
+  res = run_cli({"calibrate-range", dir + "/neg.csv"});
+  EXPECT_EQ(res.exit_code, 3);
+  EXPECT_NE(res.err.find("neg.csv:2: column 'measured': -1.01 is not a range"), std::string::npos) << res.err;
+  test::write_text(dir + "/wild.csv", "true,measured\n1,1e5\n2,3e5\n3,1e5\n4,2e5\n");
+  res = run_cli({"calibrate-range", dir + "/wild.csv"});
+  EXPECT_EQ(res.exit_code, 3);
+  EXPECT_NE(res.err.find("outside the sensor block's range_calibration bounds"), std::string::npos) << res.err;
+  EXPECT_EQ(res.out.find("paste"), std::string::npos) << res.out;
   // calibrate-mount: simulate a floor scan (Broten & Collier 7.4: 11.33 deg, 1.64 m), then fit it.
   test::write_text(dir + "/floor.yaml", R"(seed: 3
 passes: 1

@@ -196,11 +196,18 @@ TEST(Kurt3D, CleanCloudReadsAnOrganizedPcdAsLinesAndTheViewpointsRotationAndKeep
   // `import cloud` takes the VIEWPOINT as the sensor pose: the same rule.
   const auto ri = run_cli({"import", "cloud", dir + "/bad.pcd", "--output-dir", dir + "/bad_import"});
   EXPECT_EQ(ri.exit_code, 3) << ri.err;
-  EXPECT_NE(ri.err.find("bad.pcd: VIEWPOINT's rotation (qw qx qy qz = 0.000 0.000 0.000 0.000) is not a rotation"), std::string::npos) << ri.err;
+  EXPECT_NE(ri.err.find("bad.pcd: VIEWPOINT's rotation (qw qx qy qz = 0 0 0 0, norm 0) is not a rotation"), std::string::npos) << ri.err;
   EXPECT_FALSE(std::filesystem::exists(dir + "/bad_import"));
   const auto rv = run_cli({"import", "cloud", dir + "/bad.pcd", "--viewpoint", "0,0,0", "--output-dir", dir + "/bad_import"});
   EXPECT_EQ(rv.exit_code, 0) << rv.err;  // --viewpoint is the whole pose: position and the identity rotation
   const auto r3 = run_cli({"clean-cloud", dir + "/no_such.pcd", "-o", dir + "/bad.kept.pcd", "--orientation", "0,0,0,0"});
   EXPECT_EQ(r3.exit_code, 2) << r3.err;
-  EXPECT_NE(r3.err.find("not all zero (it is zero or too large)"), std::string::npos) << r3.err;
+  EXPECT_NE(r3.err.find("whose norm is at least 1e-9 (it has norm 0)"), std::string::npos) << r3.err;
+  // A rotation given at any scale is a rotation (its norm is taken without overflow); one near
+  // zero is refused with the numbers as written.
+  const auto r4 = run_cli({"clean-cloud", dir + "/no_such.pcd", "-o", dir + "/bad.kept.pcd", "--orientation", "1e160,0,0,0"});
+  EXPECT_EQ(r4.exit_code, 3) << r4.err;  // past the options: the missing file
+  const auto r5 = run_cli({"clean-cloud", dir + "/no_such.pcd", "-o", dir + "/bad.kept.pcd", "--orientation", "1e-30,0,0,0"});
+  EXPECT_EQ(r5.exit_code, 2) << r5.err;
+  EXPECT_NE(r5.err.find("(it has norm 1e-30)"), std::string::npos) << r5.err;
 }

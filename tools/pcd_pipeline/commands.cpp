@@ -340,10 +340,11 @@ std::optional<Eigen::Quaterniond> clean_cloud_orientation_option(const CleanClou
   std::vector<double> v;
   const auto err = parse_number_list(a.orientation, 4, v);
   const Eigen::Quaterniond rot = err ? Eigen::Quaterniond(0, 0, 0, 0) : Eigen::Quaterniond(v[0], v[1], v[2], v[3]);
-  if (err || !(std::isfinite(rot.norm()) && rot.norm() > 1e-9))
-    throw ConfigError("clean-cloud: --orientation '" + a.orientation + "' must be a quaternion qw,qx,qy,qz of finite numbers, not all zero (it " +
-                      (err ? *err : std::string("is zero or too large")) + ")");
-  return rot.normalized();
+  const double norm = rot.coeffs().stableNorm();
+  if (err || !(std::isfinite(norm) && norm > 1e-9))
+    throw ConfigError("clean-cloud: --orientation '" + a.orientation + "' must be a quaternion qw,qx,qy,qz of finite numbers "
+                      "whose norm is at least 1e-9 (it " + (err ? *err : "has norm " + format_value(norm)) + ")");
+  return Eigen::Quaterniond(rot.coeffs() / norm);
 }
 
 /// The scanner's frame in the cloud's (x forward, y left, z up, the scan plane x-y at nod 0):
@@ -355,12 +356,13 @@ Eigen::Quaterniond clean_cloud_orientation(const CleanCloudArgs& a, const io::Pc
   if (option) return *option;
   const double* q = h.viewpoint;
   const Eigen::Quaterniond rot(q[3], q[4], q[5], q[6]);
-  if (!(rot.norm() > 1e-9 && std::isfinite(rot.norm())))
-    throw InputError(a.input + ": VIEWPOINT's rotation (qw qx qy qz = " + std::to_string(q[3]) + " " + std::to_string(q[4]) + " " +
-                     std::to_string(q[5]) + " " + std::to_string(q[6]) +
-                     ") is not a rotation: it must be the scanner's orientation in the cloud's frame (1 0 0 0 for the same), "
-                     "or pass --orientation qw,qx,qy,qz");
-  return rot.normalized();
+  const double norm = rot.coeffs().stableNorm();  // no overflow for large components
+  if (!(norm > 1e-9 && std::isfinite(norm)))
+    throw InputError(a.input + ": VIEWPOINT's rotation (qw qx qy qz = " + format_value(q[3]) + " " + format_value(q[4]) + " " +
+                     format_value(q[5]) + " " + format_value(q[6]) + ", norm " + format_value(norm) +
+                     ") is not a rotation (a norm of zero, below 1e-9 or not finite gives no direction): it must be the "
+                     "scanner's orientation in the cloud's frame (1 0 0 0 for the same), or pass --orientation qw,qx,qy,qz");
+  return Eigen::Quaterniond(rot.coeffs() / norm);
 }
 
 /// An organized PCD (HEIGHT > 1) is a scan in order: row k is scan line k, column b beam b (a

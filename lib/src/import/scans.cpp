@@ -302,6 +302,12 @@ std::string fmt_num(double v) {
   std::snprintf(b, sizeof b, "%.3f", v);
   return b;
 }
+/// Any magnitude, 7 significant digits (1e-30 and 1e160 print as such).
+std::string fmt_g(double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%.7g", v);
+  return b;
+}
 
 /// Refuses a viewpoint farther than max_range from more than half of the points (see the header).
 void check_viewpoint(const std::string& path, const std::vector<Eigen::Vector3d>& pts, const Eigen::Vector3d& vp,
@@ -388,13 +394,16 @@ ImportedScans import_cloud(const std::vector<std::string>& files, const Eigen::V
       }
       const double* vp = t.header.viewpoint;
       const Eigen::Quaterniond rot(vp[3], vp[4], vp[5], vp[6]);
-      const bool is_rotation = rot.norm() > 1e-9 && std::isfinite(rot.norm());
+      const double norm = rot.coeffs().stableNorm();  // no overflow for large components
+      const bool is_rotation = norm > 1e-9 && std::isfinite(norm);
       if (!viewpoint && !is_rotation)  // not a rotation: normalizing would silently make it the identity
-        throw InputError(f + ": VIEWPOINT's rotation (qw qx qy qz = " + fmt_num(vp[3]) + " " + fmt_num(vp[4]) + " " + fmt_num(vp[5]) +
-                         " " + fmt_num(vp[6]) + ") is not a rotation: it must be the sensor's orientation in the cloud's frame "
-                         "(1 0 0 0 for the same), or pass --viewpoint X,Y,Z (the identity rotation)");
+        throw InputError(f + ": VIEWPOINT's rotation (qw qx qy qz = " + fmt_g(vp[3]) + " " + fmt_g(vp[4]) + " " + fmt_g(vp[5]) +
+                         " " + fmt_g(vp[6]) + ", norm " + fmt_g(norm) +
+                         ") is not a rotation (a norm of zero, below 1e-9 or not finite gives no direction): it must be the "
+                         "sensor's orientation in the cloud's frame (1 0 0 0 for the same), or pass --viewpoint X,Y,Z (the "
+                         "identity rotation)");
       s.T.translation() = Eigen::Vector3d(vp[0], vp[1], vp[2]);
-      s.T.linear() = (is_rotation ? rot.normalized() : Eigen::Quaterniond::Identity()).toRotationMatrix();
+      s.T.linear() = (is_rotation ? Eigen::Quaterniond(rot.coeffs() / norm) : Eigen::Quaterniond::Identity()).toRotationMatrix();
       // A cloud of a georeferenced run (pcd_pipeline's cloud.pcd, "# map_origin X Y Z") stores its
       // points, and its VIEWPOINT, relative to that origin: back to map coordinates, so that the
       // passes, the poses and a --viewpoint are all in the map frame.

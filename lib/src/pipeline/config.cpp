@@ -243,11 +243,51 @@ PipelineConfig build(YAML::Node root, Context& ctx, const LoadOptions& opts) {
 
 }  // namespace
 
+namespace {
+/// The first line (1-based) whose quoted value is not closed on it, or 0. YAML lets a quoted
+/// scalar run over several lines, so a quote left open swallows the keys below it and the error
+/// is about them ("required key 'stages' is missing"); a pipeline file never needs one.
+std::size_t open_quote_line(const std::string& yaml) {
+  std::size_t line = 1;
+  for (std::size_t i = 0; i < yaml.size();) {
+    const std::size_t eol = std::min(yaml.find('\n', i), yaml.size());
+    char open = 0;
+    for (std::size_t k = i; k < eol; ++k) {
+      const char c = yaml[k];
+      if (open == '"' && c == '\\') ++k;  // an escape inside double quotes
+      else if (open != 0 && c == open) {
+        if (open == '\'' && k + 1 < eol && yaml[k + 1] == '\'') ++k;  // '' inside single quotes: a quote
+        else open = 0;
+      }
+      else if (open == 0 && c == '#' && (k == i || yaml[k - 1] == ' ' || yaml[k - 1] == '\t')) break;  // a comment
+      // A quote opens a scalar only where a value starts: after ': ', '- ', '[', '{', ',' or at the line's start.
+      else if (open == 0 && (c == '"' || c == '\'')) {
+        std::size_t b = k;
+        while (b > i && yaml[b - 1] == ' ') --b;
+        if (b == i || yaml[b - 1] == ':' || yaml[b - 1] == '-' || yaml[b - 1] == '[' || yaml[b - 1] == '{' || yaml[b - 1] == ',')
+          open = c;
+      }
+    }
+    if (open != 0) return line;
+    i = eol + 1;
+    ++line;
+  }
+  return 0;
+}
+}  // namespace
+
 PipelineConfig load_pipeline_from_string(const std::string& yaml, const std::string& source_name,
                                          const std::string& base_dir, const LoadOptions& opts) {
   Context ctx(source_name, base_dir);
-  YAML::Node root = load_yaml(yaml, source_name);
-  return build(root, ctx, opts);
+  try {
+    YAML::Node root = load_yaml(yaml, source_name);
+    return build(root, ctx, opts);
+  } catch (const ConfigError& e) {
+    if (const std::size_t l = open_quote_line(yaml))
+      throw ConfigError(std::string(e.what()) + " (note: " + source_name + ":" + std::to_string(l) +
+                        " opens a quoted value that the line does not close, so it runs on over the lines below)");
+    throw;
+  }
 }
 
 PipelineConfig load_pipeline(const std::string& path, const LoadOptions& opts) {

@@ -204,7 +204,7 @@ TEST(ConfigHardening, NumbersAreDecimalWithNothingAround) {
   for (const std::string bad : {"3x", " 3", "3.0", "1e3", "0x10", "99999999999999999999"})
     EXPECT_TRUE(parse_option_value(i, bad, v).has_value()) << "'" << bad << "'";
   EXPECT_EQ(*parse_option_value(d, "inf", v), "must be a finite number");
-  for (const std::string good : {"1.5", "-2", "+3e-2", ".5", "1E3"}) EXPECT_FALSE(parse_option_value(d, good, v)) << good;
+  for (const std::string good : {"1.5", "-2", "+3e-2", ".5", "1E3", "1e-320"}) EXPECT_FALSE(parse_option_value(d, good, v)) << good;
   const std::string e = error_of(std::string(kBase) + "    band: 0.5m\n");
   EXPECT_TRUE(has(e, "p.yaml:11: stage 'fuse_elevation' (fuse_elevation): option 'band' = '0.5m' must be a number")) << e;
 }
@@ -250,4 +250,19 @@ TEST(ConfigHardening, SimulateRefusesWorkBeyondItsBound) {
   EXPECT_TRUE(has(rays, "x scanner.subrays")) << rays;
   const std::string poses = err("lines_per_pass: 1000\nscanner: {beams: 1, line_period: 10}\nmotion: {pose_rate: 10000}\n");
   EXPECT_TRUE(has(poses, "motion.pose_rate")) << poses;
+}
+
+TEST(ConfigHardening, AQuoteLeftOpenIsPointedAtWhereItsLineIs) {
+  // YAML lets a quoted value run over lines: the open quote swallows `stages`, and the error
+  // (about the missing key) says which line opened it.
+  const std::string e = error_of("input:\n  scans: \"scans/*.pcd\noutput_dir: out\nstages:\n  - type: register\n");
+  EXPECT_TRUE(has(e, "required key 'stages' is missing")) << e;
+  EXPECT_TRUE(has(e, "p.yaml:2 opens a quoted value that the line does not close")) << e;
+  // Quotes closed on their lines (escapes, '' in single quotes, a quote in a comment, flow
+  // mappings): an error elsewhere gets no note.
+  const std::string ok = error_of(
+      "input:\n  scans: 'it''s/*.pcd'  # a \"comment\n  poses: \"a\\\"b.csv\"\noutput_dir: \"out\"\n"
+      "stages: [{type: \"register\", bogus: 1}]\n");
+  EXPECT_TRUE(has(ok, "bogus")) << ok;
+  EXPECT_FALSE(has(ok, "opens a quoted value")) << ok;
 }
