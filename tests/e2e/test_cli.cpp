@@ -464,7 +464,7 @@ TEST(Cli, AmplitudeModelPrintsTheProfileAndDrawsIt) {
   EXPECT_EQ(res.exit_code, 2);
   EXPECT_NE(res.err.find("need 0 < d1 < d2"), std::string::npos);
   // NaN fails no comparison, so every option is checked to be a finite number; one file is not two outputs.
-  for (const std::vector<std::string> args : {std::vector<std::string>{"amplitude-model", "--p1", "nan"},
+  for (const auto& args : {std::vector<std::string>{"amplitude-model", "--p1", "nan"},
                                                {"amplitude-model", "--separation", "nan"},
                                                {"amplitude-model", "--points", "100000000"},
                                                {"plan-nod", "--height", "nan"},

@@ -28,9 +28,10 @@ struct SimRun {
 };
 
 /// A small simulated run folder with a pipeline that fuses an elevation grid.
-SimRun small_run(const std::string& tag) {
+SimRun small_run(const std::string& tag, double faster = 0.0) {
   SimRun r;
   r.cfg = test::small_sim_config();
+  r.cfg.motion.speed += faster;  // another drive over the same scene
   r.dir = test::fresh_dir(tag);
   const sim::SimResult s = sim::simulate(r.cfg);
   sim::write_run(s, r.cfg, r.dir);
@@ -96,8 +97,8 @@ TEST(OutputsGuard, AnInputInTheOutputFolderUnderAProductsNameIsRefusedAndKept) {
     std::string says;
   };
   const std::vector<Case> cases = {
-      {{"run", r.yaml, "-q", "--set", "input.scans=" + r.dir + "/z/cloud.pcd", "--output-dir", r.dir + "/z"}, "(cloud.pcd)"},
-      {{"import", "cloud", r.dir + "/z/pass_000.pcd", "--output-dir", r.dir + "/z"}, "(pass_000.pcd)"},
+      {{"run", r.yaml, "-q", "--set", "input.scans=" + r.dir + "/z/cloud.pcd", "--output-dir", r.dir + "/z"}, "as 'cloud.pcd'"},
+      {{"import", "cloud", r.dir + "/z/pass_000.pcd", "--output-dir", r.dir + "/z"}, "as 'pass_000.pcd'"},
       {{"clean-cloud", r.dir + "/z/cloud.pcd", "-o", r.dir + "/z/./cloud.pcd"}, "is an input of the command"},
       {{"evaluate", "--truth", r.dir, "--run", r.dir + "/nosuch"}, "no such folder"},
   };
@@ -119,6 +120,12 @@ TEST(OutputsGuard, AnInputInTheOutputFolderUnderAProductsNameIsRefusedAndKept) {
   ASSERT_EQ(run_cli({"run", r.yaml, "-q"}).exit_code, 0);
   EXPECT_FALSE(fs::exists(r.dir + "/out/evaluation.json"));
   EXPECT_TRUE(fs::exists(r.dir + "/out/notes.txt"));
+  // Scored against another simulation (the same scanner and scene, another drive): refused.
+  const SimRun other = small_run("inputs_other", 0.2);
+  const auto res = run_cli({"evaluate", "--truth", other.dir, "--run", r.dir + "/out", "-q"});
+  EXPECT_EQ(res.exit_code, 3) << res.err;
+  EXPECT_NE(res.err.find("the run read none of the"), std::string::npos) << res.err;
+  EXPECT_FALSE(fs::exists(r.dir + "/out/evaluation.json"));
 }
 
 TEST(OutputsGuard, ARunWithoutTheGridDropsAnEarlierMergeState) {

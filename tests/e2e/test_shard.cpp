@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "pcdp/io/atomic_file.hpp"
 #include "pcdp_test_paths.hpp"
 #include "test_support.hpp"
 
@@ -140,6 +141,35 @@ TEST(Shard, AMissingOrDuplicatedPartialIsRefusedNamingTheTaskAndARerunCompletes)
   expect_same_products(d + "/out");
 }
 
+TEST(Shard, ATaskStartedInAnotherFolderReadsThePlansFiles) {
+  // Scans given relative to the folder the plan is made in (--set): a task started elsewhere (a
+  // container's working directory) reads those, not whatever that folder holds.
+  const std::string d = pcdp::test::fresh_dir("shard_cwd"), w = d + "/w";
+  fs::create_directories(d + "/scans");
+  fs::create_directories(d + "/elsewhere/scans");
+  for (const auto& e : fs::directory_iterator(std::string(PCDP_SOURCE_DIR) + "/sample_scans"))
+    if (e.path().extension() == ".pcd") {
+      fs::copy_file(e.path(), d + "/scans/" + e.path().filename().string());
+      pcdp::test::write_text(d + "/elsewhere/scans/" + e.path().filename().string(), "not a pass");
+    }
+  ASSERT_EQ(run_cli({"shard", kPipeline, "--shards", "2", "--work-dir", w, "--output-dir", d + "/out", "--set",
+                     "input.scans=scans/pass_*.pcd"}, d).exit_code, 0);
+  for (const char* phase : {"evidence", "passes"})
+    for (const char* t : {"0", "1"}) {
+      const auto r = run_cli({"shard-task", w, phase, t}, d + "/elsewhere");
+      ASSERT_EQ(r.exit_code, 0) << phase << " " << t << ": " << r.err;
+    }
+  const auto r = run_cli({"shard-task", w, "reduce"}, d + "/elsewhere");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(pcdp::test::read_text(reference() + "/cloud.pcd") == pcdp::test::read_text(d + "/out/cloud.pcd"));
+  // The folder the plan was made in, gone: an input error saying so, not an internal error.
+  fs::rename(d, d + ".moved");
+  const auto gone = run_cli({"shard-task", d + ".moved/w", "passes", "0"}, d + ".moved");
+  EXPECT_EQ(gone.exit_code, 3) << gone.err;
+  EXPECT_NE(gone.err.find("the folder the plan was made in"), std::string::npos) << gone.err;
+  fs::remove_all(d + ".moved");
+}
+
 TEST(Shard, BadPlansExit2) {
   const std::string d = pcdp::test::fresh_dir("shard_bad"), w = d + "/w";
   auto r = run_cli({"shard", kPipeline, "--shards", "5", "--work-dir", w, "--local"});
@@ -172,4 +202,39 @@ TEST(Shard, TheReduceMakesTheRunLevelChecksOfRun) {
   EXPECT_EQ(r.exit_code, 3);
   EXPECT_NE(r.err.find("the run keeps nothing"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(d + "/out"));
+}
+
+TEST(Shard, TheReduceTakesOnlyTheRecordsItsTasksWroteAndOneCopyOfATaskRunsAtATime) {
+  const std::string d = pcdp::test::fresh_dir("shard_records"), w = d + "/w";
+  ASSERT_EQ(run_cli({"shard", kPipeline, "--shards", "2", "--work-dir", w, "--output-dir", d + "/out", "--local"}).exit_code, 0);
+  fs::remove_all(d + "/out");
+  const std::string rec = w + "/passes/task-0001.part.cloud.pcd", whole = pcdp::test::read_text(rec);
+  // Truncated, or the other task's record in its place: refused, naming the task to rerun.
+  pcdp::test::write_text(rec, whole.substr(0, whole.size() / 2));
+  auto r = run_cli({"shard-task", w, "reduce"});
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_NE(r.err.find("task-0001.part.cloud.pcd: not the record task 1 wrote"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("rerun task 1 of phase 'passes'"), std::string::npos) << r.err;
+  fs::copy_file(w + "/passes/task-0000.part.cloud.pcd", rec, fs::copy_options::overwrite_existing);
+  r = run_cli({"shard-task", w, "reduce"});
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_FALSE(fs::exists(d + "/out"));
+  // While one copy of a task runs (its lock held), a second refuses at once and leaves nothing.
+  {
+    pcdp::io::OutputLock held(w + "/passes/task-0001.part");
+    r = run_cli({"shard-task", w, "passes", "1"});
+    EXPECT_EQ(r.exit_code, 4) << r.err;
+    EXPECT_NE(r.err.find("another pcd_pipeline process"), std::string::npos) << r.err;
+  }
+  for (const auto& e : fs::directory_iterator(w + "/passes"))
+    EXPECT_EQ(e.path().string().find(".tmp"), std::string::npos) << e.path();
+  // An index past any plan is a configuration error, not an internal one.
+  r = run_cli({"shard-task", w, "passes", "99999999999999999999"});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("beyond any plan's tasks"), std::string::npos) << r.err;
+  // Rerunning the named task completes the job.
+  ASSERT_EQ(run_cli({"shard-task", w, "passes", "1"}).exit_code, 0);
+  r = run_cli({"shard-task", w, "reduce"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  expect_same_products(d + "/out");
 }

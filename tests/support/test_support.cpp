@@ -39,10 +39,10 @@ std::string quote(const std::string& s) {
 }
 }  // namespace
 
-CliResult run_cli(const std::vector<std::string>& args) {
+CliResult run_cli(const std::vector<std::string>& args, const std::string& cwd) {
   const std::string dir = fresh_dir("cli");
   const std::string out = dir + "/stdout", err = dir + "/stderr";
-  std::string cmd = quote(PCDP_CLI_PATH);
+  std::string cmd = (cwd.empty() ? "" : "cd " + quote(cwd) + " && ") + quote(PCDP_CLI_PATH);
   for (const auto& a : args) cmd += " " + quote(a);
   cmd += " >" + quote(out) + " 2>" + quote(err) + " </dev/null";
   const int status = std::system(cmd.c_str());

@@ -19,8 +19,8 @@ struct CliResult {
   std::string out;  ///< stdout
   std::string err;  ///< stderr
 };
-/// Runs the real pcd_pipeline binary with `args` (shell-quoted here).
-CliResult run_cli(const std::vector<std::string>& args);
+/// Runs the real pcd_pipeline binary with `args` (shell-quoted here), in `cwd` when given.
+CliResult run_cli(const std::vector<std::string>& args, const std::string& cwd = "");
 
 void write_text(const std::string& path, const std::string& text);
 std::string read_text(const std::string& path);

@@ -87,6 +87,23 @@ void check_output_file(const std::string& option, const std::string& path, const
   if (!ok) throw ConfigError(option + " '" + path + "': the file must end in " + list);
   check_not_input(option, path, inputs);
 }
+/// An import (or simulate) owns the pass files and the pose file of its output folder, and `more`
+/// (simulate's truth/), an input among them is refused (the commit would replace it): an earlier
+/// import's pass_*.pcd (more of them, or another format's) and poses.csv do not stay beside the
+/// new set, where a run's `pass_*.pcd` would read them as passes of this import.
+void own_import_products(io::StagedOutputs& staged, const std::string& out_dir, const std::vector<std::string>& inputs,
+                         const std::vector<std::string>& more = {}) {
+  staged.protect_inputs(inputs);  // an input named like a product of the folder would be replaced
+  std::vector<std::string> names = {"poses.csv"};
+  names.insert(names.end(), more.begin(), more.end());
+  std::error_code ec;
+  for (std::filesystem::directory_iterator it(out_dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string n = it->path().filename().string();
+    if (n.size() > 9 && n.compare(0, 5, "pass_") == 0 && n.compare(n.size() - 4, 4, ".pcd") == 0) names.push_back(n);
+  }
+  staged.owns(std::move(names));
+}
+
 }  // namespace
 
 int cmd_validate(const RunArgs& a) {
@@ -142,7 +159,7 @@ int cmd_stages() {
 int cmd_simulate(const std::string& scene, const std::string& output_dir, bool quiet) {
   const sim::SimConfig cfg = load_scene(scene);
   io::StagedOutputs staged(output_dir);  // locked and checked before the work; committed as a set
-  staged.protect_inputs({scene});
+  own_import_products(staged, output_dir, {scene}, {"truth"});  // before the work: a scene in truth/ would be replaced
   const sim::SimResult r = sim::simulate(cfg);
   const auto files = sim::write_run(r, cfg, staged.staging_dir());
   sim::write_truth(r, cfg, staged.staging_dir());
@@ -339,12 +356,12 @@ std::optional<Eigen::Quaterniond> clean_cloud_orientation_option(const CleanClou
   if (a.orientation.empty()) return std::nullopt;
   std::vector<double> v;
   const auto err = parse_number_list(a.orientation, 4, v);
-  const Eigen::Quaterniond rot = err ? Eigen::Quaterniond(0, 0, 0, 0) : Eigen::Quaterniond(v[0], v[1], v[2], v[3]);
-  const double norm = rot.coeffs().stableNorm();
-  if (err || !(std::isfinite(norm) && norm > 1e-9))
+  double norm = 0;
+  const auto rot = err ? std::nullopt : unit_quaternion(v[0], v[1], v[2], v[3], &norm);
+  if (!rot)
     throw ConfigError("clean-cloud: --orientation '" + a.orientation + "' must be a quaternion qw,qx,qy,qz of finite numbers "
                       "whose norm is at least 1e-9 (it " + (err ? *err : "has norm " + format_value(norm)) + ")");
-  return Eigen::Quaterniond(rot.coeffs() / norm);
+  return *rot;
 }
 
 /// The scanner's frame in the cloud's (x forward, y left, z up, the scan plane x-y at nod 0):
@@ -355,14 +372,14 @@ Eigen::Quaterniond clean_cloud_orientation(const CleanCloudArgs& a, const io::Pc
                                            const std::optional<Eigen::Quaterniond>& option) {
   if (option) return *option;
   const double* q = h.viewpoint;
-  const Eigen::Quaterniond rot(q[3], q[4], q[5], q[6]);
-  const double norm = rot.coeffs().stableNorm();  // no overflow for large components
-  if (!(norm > 1e-9 && std::isfinite(norm)))
+  double norm = 0;
+  const auto rot = unit_quaternion(q[3], q[4], q[5], q[6], &norm);
+  if (!rot)
     throw InputError(a.input + ": VIEWPOINT's rotation (qw qx qy qz = " + format_value(q[3]) + " " + format_value(q[4]) + " " +
                      format_value(q[5]) + " " + format_value(q[6]) + ", norm " + format_value(norm) +
                      ") is not a rotation (a norm of zero, below 1e-9 or not finite gives no direction): it must be the "
                      "scanner's orientation in the cloud's frame (1 0 0 0 for the same), or pass --orientation qw,qx,qy,qz");
-  return Eigen::Quaterniond(rot.coeffs() / norm);
+  return *rot;
 }
 
 /// An organized PCD (HEIGHT > 1) is a scan in order: row k is scan line k, column b beam b (a
@@ -466,7 +483,7 @@ int cmd_clean_cloud(const CleanCloudArgs& a) {
       // LAS stores millimetres as 32-bit integers about one offset: 4,294 km end to end. A cloud
       // wider than that is the input's problem (a stray point), named here before anything is written.
       for (int k = 0; k < 3 && fmt == io::CloudFormat::kLas; ++k)
-        if (hi[k] - lo[k] > 4294967.0)
+        if (hi[k] - lo[k] > 2 * 2147483.647 - 1.0)  // write_las rounds its offset to whole metres
           throw InputError(a.input + ": points " + std::to_string(at_lo[k]) + " and " + std::to_string(at_hi[k]) + " lie " +
                            format_value(hi[k] - lo[k]) + " m apart along " + "xyz"[k] +
                            ": a LAS file (millimetres as 32-bit integers) spans at most 4,294 km; remove the stray "
@@ -713,21 +730,6 @@ int cmd_docs() {
 }
 
 namespace {
-/// An import owns the pass files and the pose file of its output folder (an input among them is
-/// refused: the commit would replace it): an earlier import's
-/// pass_*.pcd (more of them, or another format's) and poses.csv do not stay beside the new set,
-/// where a run's `pass_*.pcd` would read them as passes of this import.
-void own_import_products(io::StagedOutputs& staged, const std::string& out_dir, const std::vector<std::string>& inputs) {
-  staged.protect_inputs(inputs);  // an input named like a product of the folder would be replaced
-  std::vector<std::string> names = {"poses.csv"};
-  std::error_code ec;
-  for (std::filesystem::directory_iterator it(out_dir, ec), end; !ec && it != end; it.increment(ec)) {
-    const std::string n = it->path().filename().string();
-    if (n.size() > 9 && n.compare(0, 5, "pass_") == 0 && n.compare(n.size() - 4, 4, ".pcd") == 0) names.push_back(n);
-  }
-  staged.owns(std::move(names));
-}
-
 /// Writes imported passes as OUT/pass_NNN.pcd (each atomically); returns the number of returns.
 std::size_t write_passes(const std::vector<Pass>& passes, const std::string& out_dir) {
   std::size_t n = 0;

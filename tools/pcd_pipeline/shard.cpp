@@ -176,7 +176,7 @@ int submit(const ShardArgs& a, const std::string& w, const ShardPlan& plan) {
 void add_shard_commands(CLI::App& app, ShardArgs& a) {
   a.shard = app.add_subcommand("shard", "plan a run as tasks over pass ranges; run them here (--local) or on Slurm (--submit)");
   a.shard->add_option("pipeline", a.pipeline, "pipeline YAML file")->required();
-  a.shard->add_option("--shards", a.shards, "number of tasks per phase (at most the number of passes)")->required();
+  a.shard->add_option("--shards", a.shards, "number of tasks per phase (at most the number of passes)")->required()->check(CLI::Range(1, 1000000));  // before the conversion: -1 is not 2^64 - 1
   a.shard->add_option("--work-dir", a.work_dir, "folder for the plan, the job scripts, the partials and logs")->required();
   a.shard->add_option("--set", a.sets, "override a key (as for run)");
   a.shard->add_option("--output-dir", a.output_dir, "output folder (wins over output_dir in the file)");
@@ -218,6 +218,8 @@ int run_shard_commands(const ShardArgs& a) {
     }
     if (idx.empty() || idx.find_first_not_of("0123456789") != std::string::npos)
       throw ConfigError("shard-task: the task index '" + idx + "' is not a number (give it or set SLURM_ARRAY_TASK_ID)");
+    if (idx.size() > 9)  // beyond any plan (and beyond what stoul takes)
+      throw ConfigError("shard-task: the task index " + idx + " is beyond any plan's tasks");
     run_shard_task(a.task_work_dir, a.phase, std::stoul(idx));
     return 0;
   }

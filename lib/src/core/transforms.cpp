@@ -220,4 +220,12 @@ SegmentMotion PoseTrack::motion(std::size_t k) const {
   return m;
 }
 
+std::optional<Eigen::Quaterniond> unit_quaternion(double w, double x, double y, double z, double* norm) {
+  const Eigen::Vector4d c(x, y, z, w);  // Eigen's coefficient order
+  const double n = c.stableNorm();
+  if (norm) *norm = n;
+  if (!(n > 1e-9 && std::isfinite(n))) return std::nullopt;
+  return Eigen::Quaterniond(Eigen::Vector4d(c / n));
+}
+
 }  // namespace pcdp

@@ -331,7 +331,7 @@ ImportedRosbag2 import_rosbag2(const std::string& path, const Rosbag2ImportParam
         s.angle.push_back(static_cast<double>(m.angle_min) +
                           static_cast<double>(k) * static_cast<double>(m.angle_increment));
         const float q = m.intensities.empty() ? 0.0f : m.intensities[k];
-        if (q < 0.0f)
+        if (std::isfinite(q) && q < 0.0f)  // non-finite intensities read as 0, as before
           throw InputError(ref.where() + ": intensities[" + std::to_string(k) + "] = " + std::to_string(q) +
                            " is negative (an intensity is a received power)");
         s.intensity.push_back(std::isfinite(q) ? q : 0.0f);

@@ -393,17 +393,16 @@ ImportedScans import_cloud(const std::vector<std::string>& files, const Eigen::V
         s.height = t.header.height;
       }
       const double* vp = t.header.viewpoint;
-      const Eigen::Quaterniond rot(vp[3], vp[4], vp[5], vp[6]);
-      const double norm = rot.coeffs().stableNorm();  // no overflow for large components
-      const bool is_rotation = norm > 1e-9 && std::isfinite(norm);
-      if (!viewpoint && !is_rotation)  // not a rotation: normalizing would silently make it the identity
+      double norm = 0;
+      const auto rot = unit_quaternion(vp[3], vp[4], vp[5], vp[6], &norm);
+      if (!viewpoint && !rot)  // not a rotation: normalizing would silently make it the identity
         throw InputError(f + ": VIEWPOINT's rotation (qw qx qy qz = " + fmt_g(vp[3]) + " " + fmt_g(vp[4]) + " " + fmt_g(vp[5]) +
                          " " + fmt_g(vp[6]) + ", norm " + fmt_g(norm) +
                          ") is not a rotation (a norm of zero, below 1e-9 or not finite gives no direction): it must be the "
                          "sensor's orientation in the cloud's frame (1 0 0 0 for the same), or pass --viewpoint X,Y,Z (the "
                          "identity rotation)");
       s.T.translation() = Eigen::Vector3d(vp[0], vp[1], vp[2]);
-      s.T.linear() = (is_rotation ? Eigen::Quaterniond(rot.coeffs() / norm) : Eigen::Quaterniond::Identity()).toRotationMatrix();
+      s.T.linear() = rot.value_or(Eigen::Quaterniond::Identity()).toRotationMatrix();
       // A cloud of a georeferenced run (pcd_pipeline's cloud.pcd, "# map_origin X Y Z") stores its
       // points, and its VIEWPOINT, relative to that origin: back to map coordinates, so that the
       // passes, the poses and a --viewpoint are all in the map frame.

@@ -339,24 +339,47 @@ void StagedOutputs::owns(std::vector<std::string> names) {
   for (const auto& n : owned_) check_inputs(n);
 }
 
-void StagedOutputs::protect_inputs(const std::vector<std::string>& inputs) {
+namespace {
+/// The inputs that lie inside `folder` (at any depth, symlinks resolved): (as given, the name of
+/// the folder's entry that holds it).
+std::vector<std::pair<std::string, std::string>> inputs_inside(const std::string& folder, const std::vector<std::string>& inputs) {
+  std::vector<std::pair<std::string, std::string>> out;
   std::error_code ec;
-  const fs::path folder = fs::weakly_canonical(target_, ec);
+  const fs::path f = fs::weakly_canonical(fs::absolute(folder, ec), ec);
+  if (ec) return out;
   for (const auto& in : inputs) {
     if (in.empty()) continue;
     std::error_code e2;
     const fs::path p = fs::weakly_canonical(fs::absolute(in, e2), e2);
-    if (!ec && !e2 && p.parent_path() == folder) inputs_.emplace_back(in, p.filename().string());
+    if (e2) continue;
+    const fs::path rel = p.lexically_relative(f);
+    if (!rel.empty() && *rel.begin() != ".." && *rel.begin() != ".") out.emplace_back(in, rel.begin()->string());
   }
+  return out;
+}
+
+[[noreturn]] void refuse_input(const std::string& given, const std::string& dir, const std::string& name) {
+  throw ConfigError("input '" + given + "' is in the output folder '" + dir + "' as '" + name +
+                    "', a name this command writes or replaces there: the commit would replace it; move the input or "
+                    "choose another output folder");
+}
+}  // namespace
+
+void check_inputs_not_replaced(const std::string& dir, const std::vector<std::string>& inputs,
+                               const std::vector<std::string>& names) {
+  for (const auto& [given, entry] : inputs_inside(dir, inputs))
+    if (std::count(names.begin(), names.end(), entry)) refuse_input(given, dir, entry);
+}
+
+void StagedOutputs::protect_inputs(const std::vector<std::string>& inputs) {
+  for (auto& i : inputs_inside(target_, inputs)) inputs_.push_back(std::move(i));
   for (const auto& n : owned_) check_inputs(n);
   for (const auto& n : names_) check_inputs(n);
 }
 
 void StagedOutputs::check_inputs(const std::string& name) const {
-  for (const auto& [given, file] : inputs_)
-    if (file == name)
-      throw ConfigError("input '" + given + "' is in the output folder '" + dir_ + "' under the name of an output (" + name +
-                        "): the run would replace it; move the input or choose another output folder");
+  for (const auto& [given, entry] : inputs_)
+    if (entry == name) refuse_input(given, dir_, name);
 }
 
 std::string StagedOutputs::staged_path(const std::string& filename) {

@@ -249,28 +249,54 @@ namespace {
 /// is about them ("required key 'stages' is missing"); a pipeline file never needs one.
 std::size_t open_quote_line(const std::string& yaml) {
   std::size_t line = 1;
-  for (std::size_t i = 0; i < yaml.size();) {
+  int flow = 0;                                  // depth of [ ] and { } outside quotes
+  std::size_t block_indent = std::string::npos;  // inside a | or > block scalar: its key's indentation
+  for (std::size_t i = 0; i < yaml.size(); i = std::min(yaml.find('\n', i), yaml.size()) + 1, ++line) {
     const std::size_t eol = std::min(yaml.find('\n', i), yaml.size());
+    const std::size_t first = yaml.find_first_not_of(' ', i);
+    const std::size_t indent = (first == std::string::npos ? eol : std::min(first, eol)) - i;
+    if (block_indent != std::string::npos) {
+      if (first == std::string::npos || first >= eol || yaml[first] == '\r' || indent > block_indent) continue;  // the block's text
+      block_indent = std::string::npos;
+    }
     char open = 0;
+    std::size_t last = std::string::npos;  // the last character outside quotes and comments
     for (std::size_t k = i; k < eol; ++k) {
       const char c = yaml[k];
-      if (open == '"' && c == '\\') ++k;  // an escape inside double quotes
-      else if (open != 0 && c == open) {
+      if (open == '"' && c == '\\') {
+        ++k;  // an escape inside double quotes
+      } else if (open != 0) {
+        if (c != open) continue;
         if (open == '\'' && k + 1 < eol && yaml[k + 1] == '\'') ++k;  // '' inside single quotes: a quote
         else open = 0;
-      }
-      else if (open == 0 && c == '#' && (k == i || yaml[k - 1] == ' ' || yaml[k - 1] == '\t')) break;  // a comment
-      // A quote opens a scalar only where a value starts: after ': ', '- ', '[', '{', ',' or at the line's start.
-      else if (open == 0 && (c == '"' || c == '\'')) {
+      } else if (c == '#' && (k == i || yaml[k - 1] == ' ' || yaml[k - 1] == '\t')) {
+        break;  // a comment
+      } else if (c == '"' || c == '\'') {
+        // A quote opens a scalar only where a value starts: the line's start, after ': ', after a
+        // sequence's leading '- ', or after '[', '{' or ',' inside a flow collection.
         std::size_t b = k;
         while (b > i && yaml[b - 1] == ' ') --b;
-        if (b == i || yaml[b - 1] == ':' || yaml[b - 1] == '-' || yaml[b - 1] == '[' || yaml[b - 1] == '{' || yaml[b - 1] == ',')
-          open = c;
+        const char before = b > i ? yaml[b - 1] : 0;
+        bool starts = before == 0 || (before == ':' && b < k) || (flow > 0 && (before == '[' || before == '{' || before == ','));
+        if (before == '-' && b < k) {  // "- " only as the leading indicators of the line
+          starts = true;
+          for (std::size_t j = i; j + 1 < b && starts; ++j) starts = yaml[j] == ' ' || (yaml[j] == '-' && yaml[j + 1] == ' ');
+        }
+        if (starts) open = c;
+        else last = k;
+      } else {
+        if (c == '[' || c == '{') ++flow;
+        if ((c == ']' || c == '}') && flow > 0) --flow;
+        if (c != ' ' && c != '\t' && c != '\r') last = k;
       }
     }
     if (open != 0) return line;
-    i = eol + 1;
-    ++line;
+    // "key: |" or "key: >-": the lines below, indented deeper, are the block's text.
+    if (last != std::string::npos) {
+      std::size_t k = last;
+      while (k > i && (yaml[k] == '-' || yaml[k] == '+' || (yaml[k] >= '0' && yaml[k] <= '9'))) --k;
+      if ((yaml[k] == '|' || yaml[k] == '>') && (k == i || yaml[k - 1] == ' ')) block_indent = indent;
+    }
   }
   return 0;
 }

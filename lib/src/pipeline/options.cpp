@@ -162,8 +162,10 @@ std::optional<std::string> parse_option_value(const OptionSpec& spec, const std:
       // Decimal only: strtod would also take leading blanks, hexadecimal and "nan"/"inf".
       if (text.empty() || *end != '\0') return std::string("must be a number");
       if (!std::isfinite(v)) return std::string("must be a finite number");
-      // ERANGE with a finite value is an underflow (1e-320): the number is that small, not malformed.
+      // ERANGE with a finite non-zero value is an underflow to a subnormal (1e-320): that number.
+      // Underflow to 0 (1e-400) would silently turn an option off: refused.
       if (text.find_first_not_of("+-.0123456789eE") != std::string::npos) return std::string("must be a number");
+      if (errno == ERANGE && v == 0.0) return std::string("is too small for a double (it would read as 0)");
       if (auto e = check_bounds(spec, v)) return e;
       out = v;
       return std::nullopt;
@@ -223,7 +225,7 @@ std::optional<std::string> parse_number_list(const std::string& text, std::size_
     errno = 0;
     char* end = nullptr;
     const double x = std::strtod(c.c_str(), &end);
-    if (c.empty() || *end != '\0' || !std::isfinite(x) ||  // ERANGE with a finite x: an underflow, still the number
+    if (c.empty() || *end != '\0' || !std::isfinite(x) || (errno == ERANGE && x == 0.0) ||  // an underflow to 0 is refused
         c.find_first_not_of("+-.0123456789eE") != std::string::npos)
       return "'" + c + "' is not a finite number";
     v.push_back(x);

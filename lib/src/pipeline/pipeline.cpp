@@ -185,6 +185,19 @@ void detail::collect_warnings(const PipelineConfig& cfg, const PoseTrack* poses,
 
 /// report.json lists every input and every other product with its size and SHA-256: the
 /// products as staged (complete, committed as they are), hashed on the run's threads.
+const std::vector<std::string>& detail::run_products() {
+  static const std::vector<std::string> names = {"returns.pcd",  "cloud.pcd", "report.json", "elevation.tif",
+                                                 "elevation.state.tif", "elevation.png", "map.bt", "map.ot",
+                                                 "evaluation.json"};
+  return names;
+}
+
+std::vector<std::string> detail::run_inputs(const PipelineConfig& cfg) {
+  std::vector<std::string> in = cfg.scans;
+  if (!cfg.poses.empty()) in.push_back(cfg.poses);
+  return in;
+}
+
 void detail::digest_files(const PipelineConfig& cfg, io::StagedOutputs& out, RunSummary& sum) {
   const detail::PhaseTimer digest(sum, "digest");
   for (const auto& f : cfg.scans) sum.input_files.push_back({f, "scan", 0, ""});
@@ -245,13 +258,8 @@ RunSummary Pipeline::run(const ProgressFn& progress, unsigned threads) {
   }
   // Every file a pipeline run may write: an earlier run's product that this run does not write
   // (map.ot after write_ot: false, say) does not stay beside the new set.
-  {  // a scan or pose file inside the output folder named like a product would be replaced
-    std::vector<std::string> inputs = cfg.scans;
-    inputs.push_back(cfg.poses);
-    out.protect_inputs(inputs);
-  }
-  out.owns({"returns.pcd", "cloud.pcd", "report.json", "elevation.tif", "elevation.state.tif", "elevation.png", "map.bt",
-            "map.ot", "evaluation.json"});  // evaluate's score of the earlier set is not this set's
+  out.protect_inputs(detail::run_inputs(cfg));  // a scan or pose file named like a product would be replaced
+  out.owns(detail::run_products());
   io::ReturnsWriter returns(out.staged_path("returns.pcd"), context_.map_origin);
   io::CloudWriter cloud(out.staged_path("cloud.pcd"), context_.map_origin);
   const std::string report_tmp = out.staged_path("report.json");

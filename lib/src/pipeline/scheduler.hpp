@@ -63,6 +63,12 @@ void check_what_was_kept(const PipelineConfig& cfg, const PoseTrack* poses, cons
 /// then poses so far from the map origin that the float32 products lose 1 mm.
 void collect_warnings(const PipelineConfig& cfg, const PoseTrack* poses, const std::vector<std::string>& run_warnings,
                       RunSummary& sum);
+/// Every file a pipeline run may write into its output folder (an earlier run's product that this
+/// run does not write, map.ot after write_ot: false say, or evaluate's evaluation.json of the
+/// earlier set, does not stay beside the new set).
+const std::vector<std::string>& run_products();
+/// The files a run reads that a commit into its output folder could replace (its scans and poses).
+std::vector<std::string> run_inputs(const PipelineConfig& cfg);
 /// report.json's inputs and products (every staged file but report.json), each with its size and
 /// SHA-256, hashed on sum.threads threads.
 void digest_files(const PipelineConfig& cfg, io::StagedOutputs& out, RunSummary& sum);

@@ -39,6 +39,8 @@ ShardPlan make_shard_plan(const std::string& pipeline, const std::vector<std::st
   plan.output_dir = output_dir.empty() ? "" : fs::absolute(output_dir).lexically_normal().string();
   plan.cwd = fs::current_path().string();
   auto p = prepare(plan);
+  // Refused now, not after the passes: the reduce's commit would replace such an input.
+  io::check_inputs_not_replaced(p->cfg.output_dir, detail::run_inputs(p->cfg), detail::run_products());
   plan.passes = p->cfg.scans.size();
   if (shards == 0) throw ConfigError("shard: --shards must be at least 1");
   if (shards > plan.passes)
@@ -175,8 +177,10 @@ void run_shard_task(const std::string& w, const std::string& phase, std::size_t 
     p->stages[ev]->finish(std::move(all), ev_rep, 1);
   }
   put_report(o, ev_rep);
-  io::ReturnsWriter returns(part_path(w, phase, index) + ".returns.pcd.tmp", p->context.map_origin);
-  io::CloudWriter cloud(part_path(w, phase, index) + ".cloud.pcd.tmp", p->context.map_origin);
+  const std::string returns_tmp = out.also(part_path(w, phase, index) + ".returns.pcd"),
+                    cloud_tmp = out.also(part_path(w, phase, index) + ".cloud.pcd");
+  io::ReturnsWriter returns(returns_tmp, p->context.map_origin);
+  io::CloudWriter cloud(cloud_tmp, p->context.map_origin);
   for (std::size_t k = first; k < last; ++k) {
     Pass pass = read_pass(p->cfg.scans[k], k);
     std::vector<StageReport> reps(ns);
@@ -213,11 +217,15 @@ void run_shard_task(const std::string& w, const std::string& phase, std::size_t 
   }
   returns.close();
   cloud.close();
+  // The records' SHA-256, so that the reduce takes only the records this partial describes (not
+  // a truncated, swapped or overwritten file).
+  for (const std::string* f : {&returns_tmp, &cloud_tmp}) {
+    io::FileDigest d;
+    if (const int e = io::digest_file(*f, d)) throw OutputError(*f + ": cannot read it back (" + std::strerror(e) + ")");
+    pio::put_str(o, d.sha256);
+  }
   pio::put_str(o, "end");
-  // The records first, the partial last: a partial on disk means its records are complete.
-  fs::rename(part_path(w, phase, index) + ".returns.pcd.tmp", part_path(w, phase, index) + ".returns.pcd");
-  fs::rename(part_path(w, phase, index) + ".cloud.pcd.tmp", part_path(w, phase, index) + ".cloud.pcd");
-  out.commit();
+  out.commit();  // the records first, the partial last: a partial on disk means its records are complete
 }
 
 

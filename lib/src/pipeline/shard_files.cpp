@@ -9,6 +9,7 @@
 #include <fstream>
 #include <limits>
 #include <sstream>
+#include <unistd.h>
 
 #include "pcdp/core/errors.hpp"
 #include "pcdp/core/georef.hpp"
@@ -27,7 +28,7 @@ namespace pcdp::detail::shard {
 
 namespace pio = partial_io;
 
-constexpr const char* kMagic = "pcdp.shard.1";
+constexpr const char* kMagic = "pcdp.shard.2";  // 2: passes partials end with their records' SHA-256
 
 std::string json_string(const std::string& s) {
   std::string o = "\"";
@@ -71,17 +72,27 @@ LoadOptions options_of(const ShardPlan& p) {
 
 
 std::unique_ptr<Prepared> prepare(const ShardPlan& plan) {
-  // --set paths are relative to the working directory of `shard`.
-  const fs::path here = fs::current_path();
-  if (!plan.cwd.empty()) fs::current_path(plan.cwd);
+  // --set paths are relative to the working directory of `shard`; every path is made absolute
+  // there, so a task reads the same files from whatever folder it is started in.
+  std::error_code ec;
+  const fs::path here = fs::current_path(ec);
+  if (!plan.cwd.empty()) {
+    fs::current_path(plan.cwd, ec);
+    if (ec)
+      throw InputError("shard: the folder the plan was made in, " + plan.cwd + ", cannot be entered (" + ec.message() +
+                       "): the pipeline's relative paths are relative to it; restore it or plan again");
+  }
   auto p = std::make_unique<Prepared>();
   try {
     p->cfg = load_pipeline(plan.pipeline, options_of(plan));
+    for (auto& s : p->cfg.scans) s = fs::absolute(s).lexically_normal().string();
+    if (!p->cfg.poses.empty()) p->cfg.poses = fs::absolute(p->cfg.poses).lexically_normal().string();
+    p->cfg.output_dir = fs::absolute(p->cfg.output_dir).lexically_normal().string();
   } catch (...) {
-    fs::current_path(here);
+    if (!here.empty()) fs::current_path(here, ec);
     throw;
   }
-  fs::current_path(here);
+  if (!here.empty()) fs::current_path(here, ec);
   check_stage_order(p->cfg);
   p->context.config = &p->cfg;
   if (!p->cfg.poses.empty()) {
@@ -158,6 +169,38 @@ std::unique_ptr<Partial> empty_partial(const Stage& stage) {
   return p;
 }
 
+
+AtomicOut::AtomicOut(std::string path) : path_(std::move(path)), tmp_(path_ + ".tmp." + std::to_string(::getpid())) {
+  std::error_code ec;
+  fs::create_directories(fs::path(path_).parent_path(), ec);
+  lock_ = std::make_unique<io::OutputLock>(path_);  // OutputError at once if another copy of the task runs
+  out_.open(tmp_, std::ios::binary | std::ios::trunc);
+  if (!out_) throw OutputError(tmp_ + ": cannot write it (" + std::strerror(errno) + ")");
+}
+
+AtomicOut::~AtomicOut() {
+  if (committed_) return;
+  out_.close();
+  ::unlink(tmp_.c_str());
+  for (const auto& [tmp, final_path] : also_) ::unlink(tmp.c_str());
+}
+
+std::string AtomicOut::also(const std::string& final_path) {
+  also_.emplace_back(final_path + ".tmp." + std::to_string(::getpid()), final_path);
+  return also_.back().first;
+}
+
+void AtomicOut::commit() {
+  out_.flush();
+  if (!out_) throw OutputError(tmp_ + ": cannot write it (" + std::strerror(errno) + ")");
+  out_.close();
+  for (const auto& [tmp, final_path] : also_)
+    if (std::rename(tmp.c_str(), final_path.c_str()) != 0)
+      throw OutputError(final_path + ": cannot rename its temporary into place (" + std::strerror(errno) + ")");
+  if (std::rename(tmp_.c_str(), path_.c_str()) != 0)
+    throw OutputError(path_ + ": cannot rename its temporary into place (" + std::strerror(errno) + ")");
+  committed_ = true;
+}
 
 void put_header(std::ostream& o, const ShardPlan& plan, const std::string& phase, std::size_t t) {
   pio::put_str(o, kMagic);

@@ -13,6 +13,7 @@
 
 #include "pcdp/core/errors.hpp"
 #include "pcdp/core/pass.hpp"
+#include "pcdp/io/atomic_file.hpp"
 #include "pcdp/pipeline/pipeline.hpp"
 #include "pcdp/pipeline/shard.hpp"
 #include "pcdp/pipeline/stage.hpp"
@@ -49,24 +50,27 @@ std::vector<std::unique_ptr<std::ifstream>> open_all(const std::string& w, const
 /// label() with the accounting of what it changed (as the scheduler does).
 void label_counted(const Stage& st, Pass& pass, StageReport& rep);
 
-/// Writes with a temporary name, renamed into place when complete.
+/// Writes with a temporary name of this process (`<path>.tmp.<pid>`), renamed into place when
+/// complete, holding the lock of `path` meanwhile: a second copy of the same task (a requeue, a
+/// rerun while the first still runs) refuses at once (OutputError) instead of writing over the
+/// first's files. Temporaries are removed when the task fails.
 class AtomicOut {
  public:
-  explicit AtomicOut(std::string path) : path_(std::move(path)), tmp_(path_ + ".tmp") {
-    fs::create_directories(fs::path(path_).parent_path());
-    out_.open(tmp_, std::ios::binary | std::ios::trunc);
-    if (!out_) throw OutputError(tmp_ + ": cannot write it (" + std::strerror(errno) + ")");
-  }
+  explicit AtomicOut(std::string path);
+  ~AtomicOut();
+  AtomicOut(const AtomicOut&) = delete;
+  AtomicOut& operator=(const AtomicOut&) = delete;
   std::ostream& stream() { return out_; }
-  void commit() {
-    out_.flush();
-    if (!out_) throw OutputError(tmp_ + ": cannot write it (" + std::strerror(errno) + ")");
-    out_.close();
-    fs::rename(tmp_, path_);
-  }
+  /// A further temporary for `final_path` (the task's record files), renamed by commit() before
+  /// the partial itself: a partial on disk means its records are complete.
+  std::string also(const std::string& final_path);
+  void commit();
 
  private:
   std::string path_, tmp_;
+  std::unique_ptr<io::OutputLock> lock_;
+  std::vector<std::pair<std::string, std::string>> also_;  // (temporary, final)
+  bool committed_ = false;
   std::ofstream out_;
 };
 

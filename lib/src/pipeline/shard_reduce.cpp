@@ -55,13 +55,21 @@ std::uint64_t header_points(const std::string& header) {
   return at == std::string::npos ? 0 : std::stoull(header.substr(at + 8));
 }
 
-/// Concatenates the bodies of the tasks' PCD files behind one header.
-void concat_pcd(const std::vector<std::string>& parts, const std::string& to, std::uint64_t& points) {
+/// Concatenates the bodies of the tasks' PCD files behind one header; each file must be the one
+/// its task's partial describes (`sha256[t]`): a truncated, swapped or overwritten record is an
+/// input error naming the task to rerun.
+void concat_pcd(const std::vector<std::string>& parts, const std::vector<std::string>& sha256, const std::string& to,
+                std::uint64_t& points) {
   std::string header;
   std::vector<std::string> bodies;
   points = 0;
-  for (const auto& p : parts) {
+  for (std::size_t t = 0; t < parts.size(); ++t) {
+    const std::string& p = parts[t];
     const std::string text = read_text(p);
+    if (io::sha256_hex(text.data(), text.size()) != sha256[t])
+      throw InputError(p + ": not the record task " + std::to_string(t) +
+                       " wrote (its SHA-256 differs from the one in the task's partial: truncated, replaced or "
+                       "written by another copy of the task): rerun task " + std::to_string(t) + " of phase 'passes'");
     if (text.empty()) continue;
     auto [h, at] = pcd_header(text, p);
     const std::uint64_t n = header_points(h);
@@ -108,9 +116,10 @@ RunSummary run_shard_reduce(const std::string& w) {
       for (const auto& f : st->products()) products.push_back(f);
     out.check_replaceable(products);
   }
-  out.owns({"returns.pcd", "cloud.pcd", "report.json", "elevation.tif", "elevation.state.tif", "elevation.png", "map.bt",
-            "map.ot", "evaluation.json"});  // evaluate's score of the earlier set is not this set's
+  out.protect_inputs(detail::run_inputs(cfg));  // a scan or pose file named like a product would be replaced
+  out.owns(detail::run_products());
   std::vector<std::unique_ptr<Partial>> running(ns);
+  std::vector<std::string> returns_sha(plan.shards), cloud_sha(plan.shards);  // the records each task wrote
   std::int64_t last_line = -1;
   std::string last_file;
   double stamp_min = std::numeric_limits<double>::infinity(), stamp_max = -stamp_min;
@@ -155,6 +164,8 @@ RunSummary run_shard_reduce(const std::string& w) {
         sum.input_returns += ps.returns;
         sum.passes.push_back(ps);
       }
+      returns_sha[t] = pio::get_str(*in[t]);
+      cloud_sha[t] = pio::get_str(*in[t]);
       pio::expect(*in[t], "end");
     });
   }
@@ -178,8 +189,8 @@ RunSummary run_shard_reduce(const std::string& w) {
     cp.push_back(part_path(w, "passes", t) + ".cloud.pcd");
   }
   std::uint64_t nr = 0, nc = 0;
-  concat_pcd(rp, out.staged_path("returns.pcd"), nr);
-  concat_pcd(cp, out.staged_path("cloud.pcd"), nc);
+  concat_pcd(rp, returns_sha, out.staged_path("returns.pcd"), nr);
+  concat_pcd(cp, cloud_sha, out.staged_path("cloud.pcd"), nc);
   if (nr != sum.input_returns)
     throw InputError(w + ": the tasks' returns.pcd records hold " + std::to_string(nr) + " returns, their partials " +
                      std::to_string(sum.input_returns) + ": rerun every task of phase 'passes'");

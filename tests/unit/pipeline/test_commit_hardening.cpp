@@ -271,7 +271,9 @@ std::string as_unprivileged(const std::string& owned_tree, const std::function<s
   const pid_t pid = ::fork();
   if (pid == 0) {
     ::close(fds[0]);
-    std::string r = (::setgid(65534) == 0 && ::setuid(65534) == 0) ? fn() : "cannot become nobody";
+    std::string r = !(::setgid(65534) == 0 && ::setuid(65534) == 0) ? "cannot become nobody"
+                    : ::access(owned_tree.c_str(), W_OK | X_OK) != 0 ? "SKIP: nobody cannot reach " + owned_tree
+                                                                       : fn();
     if (::write(fds[1], r.data(), r.size()) < 0) r.clear();
     ::_exit(0);
   }
@@ -313,6 +315,7 @@ TEST(CommitHardening, AReadOnlyFolderIsRefusedAndReadOnlyLeftoversAreRemoved) {
     }
     return fs::exists(base + "/.out.pcdp-new-999") ? "the read-only leftover stayed" : "";
   });
+  if (result.rfind("SKIP", 0) == 0) GTEST_SKIP() << result;  // a parent folder closed to other users
   EXPECT_EQ(result, "");
   EXPECT_EQ(test::read_text(out + "/returns.pcd"), "new");
 }

@@ -205,6 +205,7 @@ TEST(ConfigHardening, NumbersAreDecimalWithNothingAround) {
     EXPECT_TRUE(parse_option_value(i, bad, v).has_value()) << "'" << bad << "'";
   EXPECT_EQ(*parse_option_value(d, "inf", v), "must be a finite number");
   for (const std::string good : {"1.5", "-2", "+3e-2", ".5", "1E3", "1e-320"}) EXPECT_FALSE(parse_option_value(d, good, v)) << good;
+  EXPECT_EQ(*parse_option_value(d, "1e-400", v), "is too small for a double (it would read as 0)");  // an underflow to 0 would turn an option off
   const std::string e = error_of(std::string(kBase) + "    band: 0.5m\n");
   EXPECT_TRUE(has(e, "p.yaml:11: stage 'fuse_elevation' (fuse_elevation): option 'band' = '0.5m' must be a number")) << e;
 }
@@ -265,4 +266,14 @@ TEST(ConfigHardening, AQuoteLeftOpenIsPointedAtWhereItsLineIs) {
       "stages: [{type: \"register\", bogus: 1}]\n");
   EXPECT_TRUE(has(ok, "bogus")) << ok;
   EXPECT_FALSE(has(ok, "opens a quoted value")) << ok;
+  // Quotes inside plain scalars and block scalars open nothing.
+  for (const std::string text : {"description: rock-'n'-roll\n", "description: fast,'ish\n", "description: 5\" rack\n",
+                                 "description: |\n  'Twas a scan\n  \"of the yard\n", "description: >-\n  it's \"x\n"}) {
+    const std::string e2 = error_of(text + "input:\n  scans: scans/*.pcd\nstages: [{type: register, bogus: 1}]\n");
+    EXPECT_TRUE(has(e2, "bogus")) << text << e2;
+    EXPECT_FALSE(has(e2, "opens a quoted value")) << text << e2;
+  }
+  // A quote left open in a sequence item or a flow mapping is found too.
+  EXPECT_TRUE(has(error_of("input:\n  scans:\n    - \"scans/a.pcd\nstages:\n  - type: register\n"), "p.yaml:3 opens"));
+  EXPECT_TRUE(has(error_of("input: {scans: \"scans/a.pcd}\nstages:\n  - type: register\n"), "p.yaml:1 opens"));
 }

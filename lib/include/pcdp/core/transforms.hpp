@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cmath>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -157,5 +158,10 @@ class PoseTrack {
   std::vector<Segment> seg_;
   void add_segment(std::size_t k);
 };
+
+/// A rotation given as a quaternion w, x, y, z at any scale (a PCD VIEWPOINT, an option),
+/// normalized; none when it gives no direction: its norm (returned in `norm`, computed without
+/// overflow) is below 1e-9 or not finite.
+std::optional<Eigen::Quaterniond> unit_quaternion(double w, double x, double y, double z, double* norm = nullptr);
 
 }  // namespace pcdp

@@ -47,6 +47,12 @@ class OutputLock {
 /// or names no folder entry that can be replaced ("/", ".", "..").
 void check_output_path(const std::string& key, const std::string& path);
 
+/// Refuses (ConfigError, exit 2) an input inside the output folder `dir` (at any depth) under one
+/// of `names`, the folder entries a command writes or replaces: its commit would replace it. For
+/// checks before a StagedOutputs exists (a shard plan); StagedOutputs::protect_inputs does the same.
+void check_inputs_not_replaced(const std::string& dir, const std::vector<std::string>& inputs,
+                               const std::vector<std::string>& names);
+
 /// The products of a run, committed as a set into an output folder (see the top of this file).
 class StagedOutputs final {
  public:
@@ -67,9 +73,10 @@ class StagedOutputs final {
   /// writes it): the old folder's entries of these names are not carried over to the new set, so a
   /// run that no longer writes map.ot (say) leaves no earlier map.ot beside its new map.bt.
   void owns(std::vector<std::string> names);
-  /// The command's input files: one inside the output folder with the name of a product (staged
-  /// or owned) would be replaced by the commit, so that is refused (ConfigError, exit 2, naming the
-  /// input and the folder) here, in owns() and in staged_path(), before the work.
+  /// The command's input files: one inside the output folder (at any depth) under the name of a
+  /// product (staged or owned; a product folder such as truth/ holds its inputs too) would be
+  /// replaced by the commit, so that is refused (ConfigError, exit 2, naming the input and the
+  /// folder) here, in owns() and in staged_path(), before the work, and again at the commit.
   void protect_inputs(const std::vector<std::string>& inputs);
   std::string final_path(const std::string& filename) const;
   /// The final paths of everything staged so far.
@@ -90,7 +97,7 @@ class StagedOutputs final {
   std::unique_ptr<OutputLock> lock_;
   std::vector<std::string> names_;
   std::vector<std::string> owned_;
-  std::vector<std::pair<std::string, std::string>> inputs_;  // (as given, file name) of inputs inside the folder
+  std::vector<std::pair<std::string, std::string>> inputs_;  // (as given, folder entry) of inputs inside the folder
   void check_inputs(const std::string& name) const;
   void commit_steps();
   int slot_ = -1;  // in the signal cleanup table
