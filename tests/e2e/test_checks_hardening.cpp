@@ -213,3 +213,13 @@ TEST(ChecksHardening, SimulateRefusesASceneItCannotFinish) {
       << res.err;
   EXPECT_FALSE(fs::exists(dir + "/out"));
 }
+
+TEST(ChecksHardening, SimulateRefusesASceneThatGivesNoReturn) {
+  // The default mount stands on the ground and nods below the horizon: not one beam returns.
+  const std::string dir = test::fresh_dir();
+  test::write_text(dir + "/scene.yaml", "seed: 1\npasses: 1\nlines_per_pass: 20\n");
+  const auto res = run_cli({"simulate", dir + "/scene.yaml", "--output-dir", dir + "/out"});
+  EXPECT_EQ(res.exit_code, 3) << res.err;
+  EXPECT_TRUE(has(res.err, "scene.yaml: every one of the 3620 simulated beams returned nothing")) << res.err;
+  EXPECT_FALSE(fs::exists(dir + "/out"));
+}

@@ -625,7 +625,7 @@ TEST(FullChain, ConsistencyRaisesRecallWithinTheFalseRejectionBudget) {
 TEST(Cli, AKilledRunLeavesNoFileThatLooksComplete) {
   // A run long enough to interrupt: many passes of the sample scene's sensor.
   const std::string dir = test::fresh_dir();
-  test::write_text(dir + "/scene.yaml", "passes: 80\nlines_per_pass: 150\nscanner: {beams: 241, subrays: 1}\n");
+  test::write_text(dir + "/scene.yaml", "passes: 80\nlines_per_pass: 150\nmount: {z: 1.64, pitch: 0.19775}\nscanner: {beams: 241, subrays: 1}\n");
   ASSERT_EQ(run_cli({"simulate", dir + "/scene.yaml", "--output-dir", dir + "/data", "-q"}).exit_code, 0);
   test::write_text(dir + "/p.yaml", "input: {scans: data/pass_*.pcd, poses: data/poses.csv}\noutput_dir: out\nstages:\n"
                                     "  - type: register\n  - type: check_consistency\n  - type: fuse_octomap\n");

@@ -156,7 +156,8 @@ Registered register_all(const PipelineConfig& c, const fs::path& returns_pcd) {
   return out;
 }
 
-int run_scaling(const BenchArgs& a, const fs::path& scratch) {
+/// --scaling's sizes, checked (ConfigError) before any work.
+std::vector<int> scaling_sizes(const BenchArgs& a) {
   std::vector<int> sizes;
   std::stringstream ss(a.scaling);
   for (std::string s; std::getline(ss, s, ',');) {
@@ -172,6 +173,12 @@ int run_scaling(const BenchArgs& a, const fs::path& scratch) {
     if (v < 1 || v > 1000) throw ConfigError("--scaling: " + s + " passes is outside 1 .. 1000");
     sizes.push_back(v);
   }
+  if (!a.scaling.empty() && sizes.empty()) throw ConfigError("--scaling: '" + a.scaling + "' names no number of passes");
+  return sizes;
+}
+
+int run_scaling(const BenchArgs& a, const fs::path& scratch) {
+  const std::vector<int> sizes = scaling_sizes(a);
   std::printf("\nScaling (geometric simulator, `pcd_pipeline run` in a child process per size):\n");
   std::printf("  %8s %12s %10s %12s %14s %16s\n", "passes", "returns", "seconds", "returns/s", "peak RSS MB",
               "s per 1M returns");
@@ -245,6 +252,7 @@ int cmd_bench(BenchArgs a) {
   a.pipeline = fs::absolute(a.pipeline).string();
   if (a.passes < 1 || a.passes > 1000) throw ConfigError("--passes " + std::to_string(a.passes) + " is outside 1 .. 1000");
   if (a.reps < 1 || a.reps > 100) throw ConfigError("--reps " + std::to_string(a.reps) + " is outside 1 .. 100");
+  (void)scaling_sizes(a);  // checked before the benchmark, not after it
   // Prepare first: a bad pipeline or scene fails before anything is simulated.
   (void)load_pipeline(a.pipeline, LoadOptions{{}, "", false});
   (void)load_scene(a.scene);

@@ -161,6 +161,18 @@ int cmd_simulate(const std::string& scene, const std::string& output_dir, bool q
   io::StagedOutputs staged(output_dir);  // locked and checked before the work; committed as a set
   own_import_products(staged, output_dir, {scene}, {"truth"});  // before the work: a scene in truth/ would be replaced
   const sim::SimResult r = sim::simulate(cfg);
+  {  // a data set without a single return is no data set: say why before writing it
+    std::size_t beams = 0, none = 0;
+    for (const auto& p : r.passes)
+      for (Label l : p.truth) {
+        ++beams;
+        none += l == Label::kNoReturn;
+      }
+    if (beams > 0 && none == beams)
+      throw InputError(scene + ": every one of the " + std::to_string(beams) +
+                       " simulated beams returned nothing: the scanner sees no surface within range_max (check "
+                       "the mount's height and pitch, nod_min and nod_max, and the scene's objects)");
+  }
   const auto files = sim::write_run(r, cfg, staged.staging_dir());
   sim::write_truth(r, cfg, staged.staging_dir());
   {  // the scene travels with its truth, so `evaluate` knows the noise it should expect

@@ -214,6 +214,12 @@ OutputLock::OutputLock(const std::string& target) : path_(beside(fs::path(target
   const BlockSignals hold;  // the file is registered for the signal cleanup before a signal can act
   for (int attempt = 0; attempt < 100; ++attempt) {
     fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0666);
+    if (fd_ < 0 && errno == ENAMETOOLONG)
+      throw OutputError(target + ": the name '" + fs::path(target).filename().string() + "' (" +
+                        std::to_string(fs::path(target).filename().string().size()) +
+                        " bytes) is too long for the files beside it that a run needs (." +
+                        "<name>.pcdp-lock and the staging folder add 12 to 16 bytes; a name holds at most 255): "
+                        "choose a shorter one");
     if (fd_ < 0)
       throw OutputError(target + ": cannot create the lock file " + path_ + " (" + errno_text(errno) +
                         "); the folder that holds the output must be writable");

@@ -32,7 +32,10 @@ const Options<FuseOctoMapParams>& fuse_octomap_options() {
       .add("write_ot", &P::write_ot, "also write map.ot (full probabilities)")
       .rule("clamping_min < clamping_max", [](const P& p) { return p.clamping_min < p.clamping_max; },
             "the clamping thresholds bound the occupancy from below and above",
-            "option 'clamping_min' = {clamping_min} must be less than 'clamping_max' = {clamping_max}");
+            "option 'clamping_min' = {clamping_min} must be less than 'clamping_max' = {clamping_max}")
+      .rule("max_range == -1 or max_range > 0", [](const P& p) { return p.max_range == -1 || p.max_range > 0; },
+            "-1 means unlimited; a positive range cuts the rays there",
+            "option 'max_range' = {max_range} must be -1 (unlimited) or a positive range");
   return o;
 }
 }  // namespace

@@ -350,6 +350,13 @@ TEST(CommitHardening, OutputPathsAreChecked) {
   test::write_text(base + "/file", "x");
   EXPECT_THROW(io::StagedOutputs(base + "/file"), OutputError);
   EXPECT_THROW(io::StagedOutputs(base + "/file/out"), OutputError);
+  // A name that fits the filesystem but not with the lock file's additions: said so, not "must be writable".
+  try {
+    io::StagedOutputs s(base + "/" + std::string(250, 'n'));
+    ADD_FAILURE() << "a 250-byte folder name was accepted";
+  } catch (const OutputError& e) {
+    EXPECT_NE(std::string(e.what()).find("(250 bytes) is too long"), std::string::npos) << e.what();
+  }
 }
 
 TEST(CommitHardening, OneRunAtATimePerOutputAndADeadHolderBlocksNothing) {

@@ -277,3 +277,13 @@ TEST(ConfigHardening, AQuoteLeftOpenIsPointedAtWhereItsLineIs) {
   EXPECT_TRUE(has(error_of("input:\n  scans:\n    - \"scans/a.pcd\nstages:\n  - type: register\n"), "p.yaml:3 opens"));
   EXPECT_TRUE(has(error_of("input: {scans: \"scans/a.pcd}\nstages:\n  - type: register\n"), "p.yaml:1 opens"));
 }
+
+TEST(ConfigHardening, AnOctoMapRangeIsMinusOneOrPositive) {
+  // -1 is unlimited; 0 or a fraction of -1 used to mean unlimited too, silently.
+  for (const char* v : {"0", "-0.5"}) {
+    const std::string e = error_of(std::string(kBase) + "  - type: fuse_octomap\n    max_range: " + v + "\n");
+    EXPECT_TRUE(has(e, "option 'max_range' = " + std::string(v) + " must be -1 (unlimited) or a positive range")) << e;
+  }
+  for (const char* v : {"-1", "0.001", "30"})
+    EXPECT_EQ(error_of(std::string(kBase) + "  - type: fuse_octomap\n    max_range: " + v + "\n"), "(no error)") << v;
+}
