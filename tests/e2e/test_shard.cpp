@@ -228,6 +228,24 @@ TEST(Shard, TheReduceTakesOnlyTheRecordsItsTasksWroteAndOneCopyOfATaskRunsAtATim
   }
   for (const auto& e : fs::directory_iterator(w + "/passes"))
     EXPECT_EQ(e.path().string().find(".tmp"), std::string::npos) << e.path();
+  // A killed copy's temporaries (SIGKILL: no cleanup ran) go when the task runs again.
+  pcdp::test::write_text(w + "/passes/task-0001.part.tmp.99999", "x");
+  pcdp::test::write_text(w + "/passes/task-0001.part.cloud.pcd.tmp.99999.body", "x");
+  ASSERT_EQ(run_cli({"shard-task", w, "passes", "1"}).exit_code, 0);
+  EXPECT_FALSE(fs::exists(w + "/passes/task-0001.part.tmp.99999"));
+  EXPECT_FALSE(fs::exists(w + "/passes/task-0001.part.cloud.pcd.tmp.99999.body"));
+  // A plan written by another version: said so, and `shard` replaces it.
+  {
+    std::string plan = pcdp::test::read_text(w + "/plan.bin");
+    const auto at = plan.find("pcdp.shard_plan.2");
+    ASSERT_NE(at, std::string::npos);
+    plan[at + 16] = '1';
+    pcdp::test::write_text(w + "/plan.bin", plan);
+    r = run_cli({"shard-task", w, "passes", "1"});
+    EXPECT_EQ(r.exit_code, 3) << r.err;
+    EXPECT_NE(r.err.find("a plan made by another version of pcd_pipeline"), std::string::npos) << r.err;
+    ASSERT_EQ(run_cli({"shard", kPipeline, "--shards", "2", "--work-dir", w, "--output-dir", d + "/out"}).exit_code, 0);
+  }
   // An index past any plan is a configuration error, not an internal one.
   r = run_cli({"shard-task", w, "passes", "99999999999999999999"});
   EXPECT_EQ(r.exit_code, 2) << r.err;

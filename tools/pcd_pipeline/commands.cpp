@@ -158,8 +158,15 @@ int cmd_stages() {
 
 int cmd_simulate(const std::string& scene, const std::string& output_dir, bool quiet) {
   const sim::SimConfig cfg = load_scene(scene);
+  std::string scene_text;  // read now: the scene may be the copy in the output's truth/, which the commit replaces
+  {
+    std::ifstream in(scene, std::ios::binary);
+    std::ostringstream text;
+    text << in.rdbuf();
+    scene_text = text.str();
+  }
   io::StagedOutputs staged(output_dir);  // locked and checked before the work; committed as a set
-  own_import_products(staged, output_dir, {scene}, {"truth"});  // before the work: a scene in truth/ would be replaced
+  own_import_products(staged, output_dir, {}, {"truth"});
   const sim::SimResult r = sim::simulate(cfg);
   {  // a data set without a single return is no data set: say why before writing it
     std::size_t beams = 0, none = 0;
@@ -175,12 +182,8 @@ int cmd_simulate(const std::string& scene, const std::string& output_dir, bool q
   }
   const auto files = sim::write_run(r, cfg, staged.staging_dir());
   sim::write_truth(r, cfg, staged.staging_dir());
-  {  // the scene travels with its truth, so `evaluate` knows the noise it should expect
-    std::ifstream in(scene, std::ios::binary);
-    std::ostringstream text;
-    text << in.rdbuf();
-    io::write_file_atomic((std::filesystem::path(staged.staging_dir()) / "truth" / "scene.yaml").string(), text.str());
-  }
+  // The scene travels with its truth, so `evaluate` knows the noise it should expect.
+  io::write_file_atomic((std::filesystem::path(staged.staging_dir()) / "truth" / "scene.yaml").string(), scene_text);
   staged.commit();
   if (!quiet) {
     std::size_t n = 0;

@@ -259,6 +259,12 @@ std::size_t open_quote_line(const std::string& yaml) {
       if (first == std::string::npos || first >= eol || yaml[first] == '\r' || indent > block_indent) continue;  // the block's text
       block_indent = std::string::npos;
     }
+    // The line's leading sequence indicators ("- - "): where its first key or value starts.
+    std::size_t lead = i + indent;
+    while (lead + 1 < eol && yaml[lead] == '-' && yaml[lead + 1] == ' ') {
+      lead += 2;
+      while (lead < eol && yaml[lead] == ' ') ++lead;
+    }
     char open = 0;
     std::size_t last = std::string::npos;  // the last character outside quotes and comments
     for (std::size_t k = i; k < eol; ++k) {
@@ -277,11 +283,8 @@ std::size_t open_quote_line(const std::string& yaml) {
         std::size_t b = k;
         while (b > i && yaml[b - 1] == ' ') --b;
         const char before = b > i ? yaml[b - 1] : 0;
-        bool starts = before == 0 || (before == ':' && b < k) || (flow > 0 && (before == '[' || before == '{' || before == ','));
-        if (before == '-' && b < k) {  // "- " only as the leading indicators of the line
-          starts = true;
-          for (std::size_t j = i; j + 1 < b && starts; ++j) starts = yaml[j] == ' ' || (yaml[j] == '-' && yaml[j + 1] == ' ');
-        }
+        const bool starts = before == 0 || (before == ':' && b < k) || k == lead ||  // after the leading "- "
+                            (flow > 0 && (before == '[' || before == '{' || before == ','));
         if (starts) open = c;
         else last = k;
       } else {
@@ -295,7 +298,7 @@ std::size_t open_quote_line(const std::string& yaml) {
     if (last != std::string::npos) {
       std::size_t k = last;
       while (k > i && (yaml[k] == '-' || yaml[k] == '+' || (yaml[k] >= '0' && yaml[k] <= '9'))) --k;
-      if ((yaml[k] == '|' || yaml[k] == '>') && (k == i || yaml[k - 1] == ' ')) block_indent = indent;
+      if ((yaml[k] == '|' || yaml[k] == '>') && (k == i || yaml[k - 1] == ' ')) block_indent = lead - i;  // the key's column
     }
   }
   return 0;

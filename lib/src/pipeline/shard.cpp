@@ -31,6 +31,21 @@ namespace pio = partial_io;
 using namespace detail::shard;
 
 
+namespace {
+/// 2: paths made absolute in the plan's folder (the hash sees them), passes partials with their records' digests.
+constexpr const char* kPlanTag = "pcdp.shard_plan.2";
+/// Whether `path` is a plan of another version of pcd_pipeline.
+bool older_plan(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  try {
+    const std::string tag = pio::get_str(in);
+    return tag.rfind("pcdp.shard_plan.", 0) == 0 && tag != kPlanTag;
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+}  // namespace
+
 ShardPlan make_shard_plan(const std::string& pipeline, const std::vector<std::string>& sets, const std::string& output_dir,
                           std::size_t shards) {
   ShardPlan plan;
@@ -57,7 +72,7 @@ ShardPlan make_shard_plan(const std::string& pipeline, const std::vector<std::st
 
 void write_shard_plan(const std::string& w, const ShardPlan& plan) {
   const fs::path bin = fs::path(w) / "plan.bin";
-  if (fs::exists(bin)) {
+  if (fs::exists(bin) && !older_plan(bin.string())) {  // another version's plan is replaced (its partials too are refused)
     const ShardPlan old = read_shard_plan(w);
     if (old.hash != plan.hash || old.shards != plan.shards)
       throw ConfigError(w + ": the work dir holds the plan of another run (" + old.pipeline + ", " +
@@ -69,7 +84,7 @@ void write_shard_plan(const std::string& w, const ShardPlan& plan) {
   {
     AtomicOut o(bin.string());
     std::ostream& s = o.stream();
-    pio::put_str(s, "pcdp.shard_plan.1");
+    pio::put_str(s, kPlanTag);
     pio::put_str(s, plan.pipeline);
     pio::put<std::uint64_t>(s, plan.sets.size());
     for (const auto& x : plan.sets) pio::put_str(s, x);
@@ -104,7 +119,11 @@ ShardPlan read_shard_plan(const std::string& w) {
   if (!in) throw InputError(path + ": no shard plan here (" + std::strerror(errno) + "); run `pcd_pipeline shard` first");
   ShardPlan p;
   named(path, [&] {
-    pio::expect(in, "pcdp.shard_plan.1");
+    const std::string tag = pio::get_str(in);
+    if (tag.rfind("pcdp.shard_plan.", 0) == 0 && tag != kPlanTag)
+      throw InputError("a plan made by another version of pcd_pipeline (" + tag + ", this one reads " + kPlanTag +
+                       "): plan again (`pcd_pipeline shard` replaces it)");
+    if (tag != kPlanTag) throw InputError("not a shard plan");
     p.pipeline = pio::get_str(in);
     const auto ns = pio::get<std::uint64_t>(in);
     if (ns > 4096) throw InputError("corrupt");

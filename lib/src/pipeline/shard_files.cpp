@@ -1,5 +1,7 @@
 #include "pipeline/shard_files.hpp"
 
+#include "io/signal_cleanup.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cerrno>
@@ -174,11 +176,22 @@ AtomicOut::AtomicOut(std::string path) : path_(std::move(path)), tmp_(path_ + ".
   std::error_code ec;
   fs::create_directories(fs::path(path_).parent_path(), ec);
   lock_ = std::make_unique<io::OutputLock>(path_);  // OutputError at once if another copy of the task runs
+  // Holding the lock, every temporary of this task beside the partial is a killed copy's: removed.
+  const std::string prefix = fs::path(path_).filename().string() + ".";
+  std::vector<fs::path> stale;
+  for (const auto& e : fs::directory_iterator(fs::path(path_).parent_path(), ec)) {
+    const std::string n = e.path().filename().string();
+    if (n.rfind(prefix, 0) == 0 && n.find(".tmp.") != std::string::npos) stale.push_back(e.path());
+  }
+  for (const auto& f : stale) fs::remove(f, ec);
+  const io::cleanup::BlockSignals hold;  // registered before a signal can act
   out_.open(tmp_, std::ios::binary | std::ios::trunc);
   if (!out_) throw OutputError(tmp_ + ": cannot write it (" + std::strerror(errno) + ")");
+  slots_.push_back(io::cleanup::register_temp(tmp_, 1));  // SIGINT, SIGTERM, SIGHUP remove it
 }
 
 AtomicOut::~AtomicOut() {
+  for (int s : slots_) io::cleanup::unregister_temp(s);
   if (committed_) return;
   out_.close();
   ::unlink(tmp_.c_str());
@@ -187,6 +200,7 @@ AtomicOut::~AtomicOut() {
 
 std::string AtomicOut::also(const std::string& final_path) {
   also_.emplace_back(final_path + ".tmp." + std::to_string(::getpid()), final_path);
+  slots_.push_back(io::cleanup::register_temp(also_.back().first, 1));  // with the writers' temporaries beside it
   return also_.back().first;
 }
 

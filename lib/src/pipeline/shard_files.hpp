@@ -53,7 +53,8 @@ void label_counted(const Stage& st, Pass& pass, StageReport& rep);
 /// Writes with a temporary name of this process (`<path>.tmp.<pid>`), renamed into place when
 /// complete, holding the lock of `path` meanwhile: a second copy of the same task (a requeue, a
 /// rerun while the first still runs) refuses at once (OutputError) instead of writing over the
-/// first's files. Temporaries are removed when the task fails.
+/// first's files. Temporaries are removed when the task fails or gets SIGINT, SIGTERM or SIGHUP,
+/// and a killed copy's (SIGKILL) by the next copy of the task.
 class AtomicOut {
  public:
   explicit AtomicOut(std::string path);
@@ -70,6 +71,7 @@ class AtomicOut {
   std::string path_, tmp_;
   std::unique_ptr<io::OutputLock> lock_;
   std::vector<std::pair<std::string, std::string>> also_;  // (temporary, final)
+  std::vector<int> slots_;  // in the signal cleanup table
   bool committed_ = false;
   std::ofstream out_;
 };

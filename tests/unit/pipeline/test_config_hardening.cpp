@@ -276,6 +276,9 @@ TEST(ConfigHardening, AQuoteLeftOpenIsPointedAtWhereItsLineIs) {
   // A quote left open in a sequence item or a flow mapping is found too.
   EXPECT_TRUE(has(error_of("input:\n  scans:\n    - \"scans/a.pcd\nstages:\n  - type: register\n"), "p.yaml:3 opens"));
   EXPECT_TRUE(has(error_of("input: {scans: \"scans/a.pcd}\nstages:\n  - type: register\n"), "p.yaml:1 opens"));
+  // After a block scalar's text, the next key's line is read again.
+  EXPECT_TRUE(has(error_of("description: |\n  it's text\ninput:\n  scans: \"scans/*.pcd\nstages:\n  - type: register\n"),
+                  "p.yaml:4 opens"));
 }
 
 TEST(ConfigHardening, AnOctoMapRangeIsMinusOneOrPositive) {
