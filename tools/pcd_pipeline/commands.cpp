@@ -91,7 +91,7 @@ void check_output_file(const std::string& option, const std::string& path, const
 /// (simulate's truth/), an input among them is refused (the commit would replace it): an earlier
 /// import's pass_*.pcd (more of them, or another format's) and poses.csv do not stay beside the
 /// new set, where a run's `pass_*.pcd` would read them as passes of this import.
-void own_import_products(io::StagedOutputs& staged, const std::string& out_dir, const std::vector<std::string>& inputs,
+void own_pass_products(io::StagedOutputs& staged, const std::string& out_dir, const std::vector<std::string>& inputs,
                          const std::vector<std::string>& more = {}) {
   staged.protect_inputs(inputs);  // an input named like a product of the folder would be replaced
   std::vector<std::string> names = {"poses.csv"};
@@ -157,16 +157,10 @@ int cmd_stages() {
 }
 
 int cmd_simulate(const std::string& scene, const std::string& output_dir, bool quiet) {
-  const sim::SimConfig cfg = load_scene(scene);
-  std::string scene_text;  // read now: the scene may be the copy in the output's truth/, which the commit replaces
-  {
-    std::ifstream in(scene, std::ios::binary);
-    std::ostringstream text;
-    text << in.rdbuf();
-    scene_text = text.str();
-  }
+  std::string scene_text;  // kept: the scene may be the copy in the output's truth/, which the commit replaces
+  const sim::SimConfig cfg = load_scene(scene, &scene_text);
   io::StagedOutputs staged(output_dir);  // locked and checked before the work; committed as a set
-  own_import_products(staged, output_dir, {}, {"truth"});
+  own_pass_products(staged, output_dir, {}, {"truth"});
   const sim::SimResult r = sim::simulate(cfg);
   {  // a data set without a single return is no data set: say why before writing it
     std::size_t beams = 0, none = 0;
@@ -472,39 +466,32 @@ int cmd_clean_cloud(const CleanCloudArgs& a) {
   // Write kept (and removed) points, committed as a set: a PCD with every field of the input; PLY
   // and LAS with map coordinates (x y z + map_origin), the amplitude and the label when present.
   const int il = t.header.field_index("label");
-  std::uint64_t not_in_las = 0;  // points with a non-finite coordinate: LAS has no "no point"
+  std::uint64_t not_in_las = 0;  // points write_las could not store (a non-finite coordinate)
   const auto write = [&](const std::string& tmp, bool want_mixed, io::CloudFormat fmt) {
     std::uint64_t count = 0;
     if (fmt != io::CloudFormat::kPcd) {
       io::CloudOut c;
+      std::vector<std::size_t> source;  // the input point of each written one, to name it
       const Eigen::Vector3d origin(t.header.map_origin[0], t.header.map_origin[1], t.header.map_origin[2]);
-      Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
-      std::size_t at_lo[3] = {0, 0, 0}, at_hi[3] = {0, 0, 0};
       for (std::size_t i = 0; i < n; ++i) {
         if ((mixed[i] != 0) != want_mixed) continue;
-        const Eigen::Vector3d p = pts[i] + origin;
-        c.xyz.push_back(p);
+        c.xyz.push_back(pts[i] + origin);
+        source.push_back(i);
         if (!amp.empty()) c.intensity.push_back(amp[i]);
         if (il >= 0) c.label.push_back(static_cast<std::uint8_t>(std::clamp(col(il, i), 0.0, 255.0)));
-        if (!p.allFinite()) {
-          not_in_las += fmt == io::CloudFormat::kLas;
-          continue;
-        }
-        for (int k = 0; k < 3; ++k) {
-          if (p[k] < lo[k]) lo[k] = p[k], at_lo[k] = i;
-          if (p[k] > hi[k]) hi[k] = p[k], at_hi[k] = i;
+      }
+      if (fmt != io::CloudFormat::kLas) {
+        io::write_ply(tmp, c);
+      } else {
+        try {
+          not_in_las += c.xyz.size() - io::write_las(tmp, c);
+        } catch (const io::LasSpanError& e) {  // a cloud wider than LAS holds: the input's stray points
+          throw InputError(a.input + ": points " + std::to_string(source[e.first]) + " and " +
+                           std::to_string(source[e.second]) + " lie " + format_value(e.span) + " m apart along " +
+                           "xyz"[e.axis] + ": a LAS file (millimetres as 32-bit integers) spans at most 4,294 km; "
+                           "remove the stray points or write PCD or PLY");
         }
       }
-      // LAS stores millimetres as 32-bit integers about one offset: 4,294 km end to end. A cloud
-      // wider than that is the input's problem (a stray point), named here before anything is written.
-      for (int k = 0; k < 3 && fmt == io::CloudFormat::kLas; ++k)
-        if (hi[k] - lo[k] > 2 * 2147483.647 - 1.0)  // write_las rounds its offset to whole metres
-          throw InputError(a.input + ": points " + std::to_string(at_lo[k]) + " and " + std::to_string(at_hi[k]) + " lie " +
-                           format_value(hi[k] - lo[k]) + " m apart along " + "xyz"[k] +
-                           ": a LAS file (millimetres as 32-bit integers) spans at most 4,294 km; remove the stray "
-                           "points or write PCD or PLY");
-      if (fmt == io::CloudFormat::kLas) io::write_las(tmp, c);
-      else io::write_ply(tmp, c);
       return static_cast<std::uint64_t>(c.xyz.size());
     }
     {
@@ -785,7 +772,7 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
     opt.unit_scale = unit_scale;
     if (!nod_origin.empty() && !opt.auto_nod_origin) opt.nod_origin = xyz("--nod-origin", nod_origin);
     io::StagedOutputs staged(out_dir);  // locked and checked before the work; committed as a set
-    own_import_products(staged, out_dir, inputs);
+    own_pass_products(staged, out_dir, inputs);
     const io::ImportedScans r = format == "octomap" ? io::import_octomap(inputs, opt)
                                                     : io::import_cloud(inputs, have_vp ? &vp : nullptr, opt);
     const std::size_t n = write_passes(r.passes, staged.staging_dir());
@@ -820,7 +807,7 @@ int cmd_import(const std::string& format, const std::vector<std::string>& inputs
   if (poses != "odometry" && poses != "frames")
     throw ConfigError("import 3dtk: --poses must be odometry or frames, not '" + poses + "'");
   io::StagedOutputs staged(out_dir);
-  own_import_products(staged, out_dir, inputs);
+  own_pass_products(staged, out_dir, inputs);
   const io::Imported3dtk r = io::import_3dtk(inputs, poses == "frames", beams_per_line);
   const std::size_t n = write_passes(r.passes, staged.staging_dir());
   sim::write_pose_csv(r.poses, RpyOrder::kXyz, (std::filesystem::path(staged.staging_dir()) / "poses.csv").string());
@@ -840,7 +827,7 @@ int cmd_import_tilt(const std::string& format, const std::vector<std::string>& i
   if (format == "rplidar" && !(p.scan_topic.empty() && p.tilt_topic.empty() && p.odom_topic.empty() && p.tf_frames.empty()))
     throw ConfigError("import rplidar: --scan-topic, --tilt-topic, --odom-topic and --tf-frames are for rosbag2");
   io::StagedOutputs staged(out_dir);
-  own_import_products(staged, out_dir, inputs);
+  own_pass_products(staged, out_dir, inputs);
   io::ImportedRosbag2 b;
   if (format == "rplidar")
     b.passes = io::import_rplidar(inputs[0], p.passes);
@@ -874,7 +861,7 @@ int cmd_import_carmen(const std::vector<std::string>& inputs, const std::string&
   if (inputs.size() != 1)
     throw ConfigError("import carmen: expected one log (.log or .log.gz), got " + std::to_string(inputs.size()) + " inputs");
   io::StagedOutputs staged(out_dir);
-  own_import_products(staged, out_dir, inputs);
+  own_pass_products(staged, out_dir, inputs);
   const io::ImportedCarmen r = io::import_carmen(inputs[0]);
   // One pass per message: enough digits that the files sort in time order.
   const std::size_t digits = std::max<std::size_t>(3, std::to_string(r.passes.size() - 1).size());

@@ -318,18 +318,32 @@ void write_bytes(const std::string& path, const std::vector<std::uint8_t>& head,
 }
 }  // namespace
 
-void write_las(const std::string& path, const CloudOut& c) {
+std::uint64_t write_las(const std::string& path, const CloudOut& c) {
   const std::size_t n = c.xyz.size();
   if (n > std::numeric_limits<std::uint32_t>::max())
     throw OutputError(path + ": " + std::to_string(n) + " points: LAS 1.2 holds at most 4294967295");
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-  for (const auto& p : c.xyz) {
+  std::size_t at_lo[3] = {0, 0, 0}, at_hi[3] = {0, 0, 0};
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto& p = c.xyz[i];
     if (!p.allFinite()) continue;
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
+    for (int a = 0; a < 3; ++a) {
+      if (p[a] < lo[a]) lo[a] = p[a], at_lo[a] = i;
+      if (p[a] > hi[a]) hi[a] = p[a], at_hi[a] = i;
+    }
   }
   if (!(lo.x() <= hi.x())) lo = hi = Eigen::Vector3d::Zero();
   const double scale = 0.001;
+  // Millimetres as int32 about an offset rounded to whole metres: refused before anything is written.
+  for (int a = 0; a < 3; ++a)
+    if (hi[a] - lo[a] > 2 * 2147483.647 - 1.0) {
+      char span[32];
+      std::snprintf(span, sizeof span, "%.9g", hi[a] - lo[a]);
+      throw LasSpanError(path + ": points " + std::to_string(at_lo[a]) + " and " + std::to_string(at_hi[a]) + " lie " +
+                             span + " m apart along " + "xyz"[a] +
+                             ": a LAS file (millimetres as 32-bit integers) spans at most 4,294 km",
+                         at_lo[a], at_hi[a], hi[a] - lo[a], a);
+    }
   const Eigen::Vector3d offset = ((lo + hi) / 2).array().round();
   std::uint32_t written = 0;
   std::vector<std::uint8_t> body;
@@ -390,6 +404,7 @@ void write_las(const std::string& path, const CloudOut& c) {
     put(h, written ? qlo[a] * scale + offset[a] : 0.0);
   }
   write_bytes(path, h, body);
+  return written;
 }
 
 void write_ply(const std::string& path, const CloudOut& c) {

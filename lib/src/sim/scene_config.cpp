@@ -299,13 +299,14 @@ sim::SimConfig load_scene_from_string(const std::string& yaml, const std::string
   return c;
 }
 
-sim::SimConfig load_scene(const std::string& path) {
+sim::SimConfig load_scene(const std::string& path, std::string* text) {
   if (const std::string problem = io::regular_file_problem(path, "scene file"); !problem.empty())
     throw ConfigError(path + ": " + problem);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw ConfigError(path + ": cannot read the scene file (" + std::strerror(errno) + ")");
   std::ostringstream ss;
   ss << in.rdbuf();
+  if (text) *text = ss.str();
   return load_scene_from_string(ss.str(), path);
 }
 

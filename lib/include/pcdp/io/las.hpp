@@ -16,6 +16,8 @@
 #include <string>
 #include <vector>
 
+#include "pcdp/core/errors.hpp"
+
 namespace pcdp::io {
 
 struct LasHeader {
@@ -64,9 +66,23 @@ struct CloudOut {
 
 /// LAS 1.2, point data record format 1 (28 bytes), scale 0.001 (mm), offset the bounding box's
 /// centre rounded to a metre; intensity clamped to 0..65535; label in the user data byte,
-/// classification 1 (unclassified). Throws OutputError when the cloud spans more than an int32 of
-/// millimetres (+-2,147 km about the centre) or cannot be written.
-void write_las(const std::string& path, const CloudOut& cloud);
+/// classification 1 (unclassified). Points with a non-finite coordinate are not written (LAS has no
+/// "no point"); returns the number written. Throws LasSpanError, before writing, when the cloud
+/// spans more than an int32 of millimetres (+-2,147 km about the centre), OutputError when it
+/// cannot be written.
+std::uint64_t write_las(const std::string& path, const CloudOut& cloud);
+
+/// The cloud is wider than a LAS file holds: `first` and `second` (indices into CloudOut::xyz) lie
+/// `span` metres apart along `axis` (0 x, 1 y, 2 z). An OutputError: the caller that knows where
+/// the points came from names them.
+class LasSpanError : public OutputError {
+ public:
+  LasSpanError(const std::string& what, std::size_t a, std::size_t b, double metres, int along)
+      : OutputError(what), first(a), second(b), span(metres), axis(along) {}
+  std::size_t first, second;
+  double span;
+  int axis;
+};
 /// Binary little-endian PLY: double x y z, then float intensity and uchar label when present.
 void write_ply(const std::string& path, const CloudOut& cloud);
 

@@ -128,8 +128,9 @@ const OptionSchema& scanner_schema();
 const OptionSchema& motion_schema();
 const OptionSchema& terrain_schema();
 
-/// Loads and validates a scene YAML for `pcd_pipeline simulate` (same strict rules as pipelines).
-sim::SimConfig load_scene(const std::string& path);
+/// Loads and validates a scene YAML for `pcd_pipeline simulate` (same strict rules as pipelines);
+/// `text`, when given, receives the file's bytes as read.
+sim::SimConfig load_scene(const std::string& path, std::string* text = nullptr);
 sim::SimConfig load_scene_from_string(const std::string& yaml, const std::string& source_name);
 
 }  // namespace pcdp
