@@ -282,7 +282,7 @@ TEST(ConfigHardening, AQuoteLeftOpenIsPointedAtWhereItsLineIs) {
 }
 
 TEST(ConfigHardening, AnOctoMapRangeIsMinusOneOrPositive) {
-  // -1 is unlimited; 0 or a fraction of -1 used to mean unlimited too, silently.
+  // -1 is unlimited; 0 and values between -1 and 0 mean no range, and are refused.
   for (const char* v : {"0", "-0.5"}) {
     const std::string e = error_of(std::string(kBase) + "  - type: fuse_octomap\n    max_range: " + v + "\n");
     EXPECT_TRUE(has(e, "option 'max_range' = " + std::string(v) + " must be -1 (unlimited) or a positive range")) << e;
