@@ -29,8 +29,10 @@ struct Nb {
 
 /// A side's nearest returns within the window. With look_through_tol >= 0, the nearest is not one
 /// whose beam lies inside the return's footprint and whose range is within look_through_tol of its.
+/// With min_angle > 0, the nearest is not one whose beam lies closer than min_angle to the return's
+/// (`skipped`: the farthest position passed so).
 Nb neighbours(const ReturnsView& v, const std::vector<std::size_t>& seq, std::size_t pos, int dir, const MixedPixelParams& p,
-              double look_through_tol = -1) {
+              double look_through_tol = -1, double min_angle = 0, int* skipped = nullptr) {
   Nb nb;
   const float* ang = v.across ? v.across_angle : v.along_angle;
   const std::size_t self = seq[pos];
@@ -42,6 +44,13 @@ Nb neighbours(const ReturnsView& v, const std::vector<std::size_t>& seq, std::si
     if (q < 0 || q >= static_cast<long>(seq.size())) break;
     const std::size_t k = seq[static_cast<std::size_t>(q)];
     if (!v.usable[k]) continue;
+    if (nb.count == 0 && min_angle > 0 && ang) {
+      const double d = std::fabs(static_cast<double>(ang[k]) - ang[self]);
+      if (d > 0 && std::min(d, 2 * kPi - d) < min_angle) {
+        if (skipped) *skipped = step;
+        continue;
+      }
+    }
     if (nb.count == 0 && look_through_tol >= 0 && ang &&
         std::fabs(static_cast<double>(v.range[k]) - v.range[self]) <= look_through_tol) {
       // Equal readings (a scanner that does not nod, an encoder's plateau) cannot say the beams
@@ -200,6 +209,93 @@ bool breaks_from_side(const ReturnsView& v, std::size_t i, const Nb& own, const 
   }
   return angle_to(v, i, own.idx[0]) <= p.max_angle;
 }
+
+/// Whether the return next to `pos` on side `dir` may lie inside its footprint (its beam closer than
+/// the divergence; a void there may hide a nearer one past it), so that reading the side past the
+/// footprint can differ from reading it plainly.
+bool inside_footprint(const ReturnsView& v, const std::vector<std::size_t>& seq, std::size_t pos, int dir) {
+  const long q = static_cast<long>(pos) + dir;
+  if (q < 0 || q >= static_cast<long>(seq.size())) return false;
+  const std::size_t k = seq[static_cast<std::size_t>(q)];
+  if (!v.usable[k]) return true;
+  const float* ang = v.across ? v.across_angle : v.along_angle;
+  const double d = std::fabs(static_cast<double>(ang[k]) - ang[seq[pos]]);
+  return d > 0 && std::min(d, 2 * kPi - d) < v.divergence;
+}
+
+/// Tests 1-4 (docs/mixed_pixels.md) at return i between sides l and r: the kind of edge found
+/// (kNoEdge where a test fails). `skipped` positions were read past on the two sides together
+/// (returns inside the footprint), which do not count against the sides' span.
+char two_sided_edge(const ReturnsView& v, std::size_t i, const Nb& l, const Nb& r, int skipped, double tol,
+                    const MixedPixelParams& p, bool coaxial) {
+  const double ri = v.range[i];
+  // Two-sided: each side needs a return; and one of them a second one, for its rate of change
+  // (with one return on each side, a surface crossing the return looks like an edge).
+  if (l.count == 0 || r.count == 0 || (l.count < 2 && r.count < 2)) return kNoEdge;
+  // The two sides must be close: across a run of missing returns they may be different surfaces.
+  if (l.at[0] + r.at[0] - skipped > p.max_span) return kNoEdge;
+  // 1. An edge: the nearest neighbours on the two sides are far apart...
+  const bool left_near = l.r[0] < r.r[0];
+  const Nb& nr = left_near ? l : r;
+  const Nb& fr = left_near ? r : l;
+  if (fr.r[0] - nr.r[0] <= jump_at(p, nr.r[0])) return kNoEdge;
+  // ...and much faster than each side changes on its own (grazing ground changes range by
+  // comparable steps everywhere; a veil hangs between two sides that change slowly).
+  // A side's own rate of change, from its two nearest returns, unless the second one lies back
+  // on the other side's surface (a thin post one return wide: its "side" is post, background).
+  // The rate is scaled by the side's own acceleration (ratio of its last two steps, from three
+  // returns, clamped to [1, 3]): ground seen at the ends of a scan line grows hyperbolically.
+  bool corner = false;
+  const auto rate = [&](const Nb& nb, const Nb& other) {
+    if (nb.count < 2) return 0.0;
+    if (std::fabs(nb.r[1] - other.r[0]) < std::fabs(nb.r[1] - nb.r[0])) return 0.0;
+    const double s1 = std::fabs(nb.r[1] - nb.r[0]) / (nb.at[1] - nb.at[0]);
+    if (!nb.has3) return s1;
+    const double s2 = std::fabs(nb.r3 - nb.r[1]) / (nb.at3 - nb.at[1]);
+    // A corner: the side's first step is itself an edge, beyond any smooth acceleration (a face
+    // seen edge-on, one return wide, then another surface); the next step stands in.
+    if (nb.at3 == 3 && s1 > jump_at(p, nb.r[0]) && s1 > 3.0 * s2) {
+      corner = true;
+      return s2;
+    }
+    return s2 > 1e-9 ? s1 * std::clamp(s1 / s2, 1.0, 3.0) : s1;
+  };
+  const double across = (fr.r[0] - nr.r[0]) / (l.at[0] + r.at[0]);
+  const double side_rate = std::max(rate(l, r), rate(r, l));
+  if (across <= p.weak_edge_factor * side_rate) return kNoEdge;
+  const char strength = across <= p.edge_factor * side_rate ? kWeakEdge : corner ? kCornerEdge : kStrongEdge;
+  // 2. ...and the return lies strictly between them, on neither surface: not within the
+  // tolerance of either side, nor of either side's linear trend (grazing ground changes range
+  // quickly between lines, but smoothly, so it continues a trend; a veil continues none).
+  if (!(ri > nr.r[0] + tol && ri < fr.r[0] - tol)) return kNoEdge;
+  const auto on_trend = [&](const Nb& nb) {
+    if (nb.count < 2) return false;
+    const double extrap = nb.r[0] - (nb.r[1] - nb.r[0]) / (nb.at[1] - nb.at[0]) * nb.at[0];
+    if (std::fabs(ri - extrap) <= tol) return true;
+    if (on_plane_of(v, i, nb.idx[0], nb.idx[1], tol)) return true;
+    if (!nb.has3) return on_patch_of(v, i, nb, tol, false);
+    // Quadratic through the side's three returns (at -at0, -at1, -at3), evaluated at 0.
+    const double x0 = -nb.at[0], x1 = -nb.at[1], x2 = -nb.at3;
+    const double quad = nb.r[0] * (x1 * x2) / ((x0 - x1) * (x0 - x2)) + nb.r[1] * (x0 * x2) / ((x1 - x0) * (x1 - x2)) +
+                        nb.r3 * (x0 * x1) / ((x2 - x0) * (x2 - x1));
+    return std::fabs(ri - quad) <= tol || on_patch_of(v, i, nb, tol, false);
+  };
+  if (on_trend(l) || on_trend(r)) return kNoEdge;
+  const double d1 = nr.predicted, d2 = fr.predicted;
+  // 3. Geometry: the segment to at least one side runs along the beam (a mixture close to one
+  // surface makes a wide angle with that side's neighbour, a narrow one with the other's).
+  if (std::min(angle_to(v, i, nr.idx[0]), angle_to(v, i, fr.idx[0])) > p.max_angle) return kNoEdge;
+  const double a = v.amplitude ? static_cast<double>(v.amplitude[i]) : NAN;
+  const double p1 = side_amp(v, nr, p), p2 = side_amp(v, fr, p);
+  const bool saturated = a >= p.amplitude_saturation || p1 >= p.amplitude_saturation || p2 >= p.amplitude_saturation;
+  // 4. amplitude mixing (models/mixing_model.hpp); unknown where a side's amplitude is 0.
+  const double pred = std::isfinite(a) && !saturated && d2 > d1 ? mixture_amplitude_at(ri, d1, p1, d2, p2) : NAN;
+  if (std::isfinite(pred)) {
+    if (a > pred * (1 + p.amplitude_ratio) + p.amplitude_slack) return kNoEdge;
+    if (coaxial && a < pred * (1 - p.amplitude_ratio) - p.amplitude_slack) return kNoEdge;
+  }
+  return strength;
+}
 }  // namespace
 
 void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq, const MixedPixelParams& p,
@@ -246,72 +342,24 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
       if (l.count > 0 && std::fabs(l.r[0] - ri) <= tol) l = neighbours(v, seq, pos, -1, p, tol);
       if (r.count > 0 && std::fabs(r.r[0] - ri) <= tol) r = neighbours(v, seq, pos, +1, p, tol);
     }
-    // Two-sided: each side needs a return; and one of them a second one, for its rate of change
-    // (with one return on each side, a surface crossing the return looks like an edge).
-    if (l.count == 0 || r.count == 0 || (l.count < 2 && r.count < 2)) continue;
-    // The two sides must be close: across a run of missing returns they may be different surfaces.
-    if (l.at[0] + r.at[0] > p.max_span) continue;
-    // 1. An edge: the nearest neighbours on the two sides are far apart...
-    const bool left_near = l.r[0] < r.r[0];
-    const Nb& nr = left_near ? l : r;
-    const Nb& fr = left_near ? r : l;
-    if (fr.r[0] - nr.r[0] <= jump_at(p, nr.r[0])) continue;
-    // ...and much faster than each side changes on its own (grazing ground changes range by
-    // comparable steps everywhere; a veil hangs between two sides that change slowly).
-    // A side's own rate of change, from its two nearest returns, unless the second one lies back
-    // on the other side's surface (a thin post one return wide: its "side" is post, background).
-    // The rate is scaled by the side's own acceleration (ratio of its last two steps, from three
-    // returns, clamped to [1, 3]): ground seen at the ends of a scan line grows hyperbolically.
-    bool corner = false;
-    const auto rate = [&](const Nb& nb, const Nb& other) {
-      if (nb.count < 2) return 0.0;
-      if (std::fabs(nb.r[1] - other.r[0]) < std::fabs(nb.r[1] - nb.r[0])) return 0.0;
-      const double s1 = std::fabs(nb.r[1] - nb.r[0]) / (nb.at[1] - nb.at[0]);
-      if (!nb.has3) return s1;
-      const double s2 = std::fabs(nb.r3 - nb.r[1]) / (nb.at3 - nb.at[1]);
-      // A corner: the side's first step is itself an edge, beyond any smooth acceleration (a face
-      // seen edge-on, one return wide, then another surface); the next step stands in.
-      if (nb.at3 == 3 && s1 > jump_at(p, nb.r[0]) && s1 > 3.0 * s2) {
-        corner = true;
-        return s2;
-      }
-      return s2 > 1e-9 ? s1 * std::clamp(s1 / s2, 1.0, 3.0) : s1;
-    };
-    const double across = (fr.r[0] - nr.r[0]) / (l.at[0] + r.at[0]);
-    const double side_rate = std::max(rate(l, r), rate(r, l));
-    if (across <= p.weak_edge_factor * side_rate) continue;
-    const char strength = across <= p.edge_factor * side_rate ? kWeakEdge : corner ? kCornerEdge : kStrongEdge;
-    // 2. ...and the return lies strictly between them, on neither surface: not within the
-    // tolerance of either side, nor of either side's linear trend (grazing ground changes range
-    // quickly between lines, but smoothly, so it continues a trend; a veil continues none).
-    if (!(ri > nr.r[0] + tol && ri < fr.r[0] - tol)) continue;
-    const auto on_trend = [&](const Nb& nb) {
-      if (nb.count < 2) return false;
-      const double extrap = nb.r[0] - (nb.r[1] - nb.r[0]) / (nb.at[1] - nb.at[0]) * nb.at[0];
-      if (std::fabs(ri - extrap) <= tol) return true;
-      if (on_plane_of(v, i, nb.idx[0], nb.idx[1], tol)) return true;
-      if (!nb.has3) return on_patch_of(v, i, nb, tol, false);
-      // Quadratic through the side's three returns (at -at0, -at1, -at3), evaluated at 0.
-      const double x0 = -nb.at[0], x1 = -nb.at[1], x2 = -nb.at3;
-      const double quad = nb.r[0] * (x1 * x2) / ((x0 - x1) * (x0 - x2)) + nb.r[1] * (x0 * x2) / ((x1 - x0) * (x1 - x2)) +
-                          nb.r3 * (x0 * x1) / ((x2 - x0) * (x2 - x1));
-      return std::fabs(ri - quad) <= tol || on_patch_of(v, i, nb, tol, false);
-    };
-    if (on_trend(l) || on_trend(r)) continue;
-    const double d1 = nr.predicted, d2 = fr.predicted;
-    // 3. Geometry: the segment to at least one side runs along the beam (a mixture close to one
-    // surface makes a wide angle with that side's neighbour, a narrow one with the other's).
-    if (std::min(angle_to(v, i, nr.idx[0]), angle_to(v, i, fr.idx[0])) > p.max_angle) continue;
-    const double a = v.amplitude ? static_cast<double>(v.amplitude[i]) : NAN;
-    const double p1 = side_amp(v, nr, p), p2 = side_amp(v, fr, p);
-    const bool saturated = a >= p.amplitude_saturation || p1 >= p.amplitude_saturation || p2 >= p.amplitude_saturation;
-    // 4. amplitude mixing (models/mixing_model.hpp); unknown where a side's amplitude is 0.
-    const double pred = std::isfinite(a) && !saturated && d2 > d1 ? mixture_amplitude_at(ri, d1, p1, d2, p2) : NAN;
-    if (std::isfinite(pred)) {
-      if (a > pred * (1 + p.amplitude_ratio) + p.amplitude_slack) continue;
-      if (coaxial && a < pred * (1 - p.amplitude_ratio) - p.amplitude_slack) continue;
+    char strength = two_sided_edge(v, i, l, r, 0, tol, p, coaxial);
+    // Past the footprint: where the beams are closer than the divergence, a mixture's nearest
+    // neighbours may be mixtures of the same edge (their footprints overlap this one's), and a
+    // run of them makes a ramp from one surface to the other whose every step has a steeper step
+    // beside it, so no return in it shows an edge against its nearest neighbours (behind a
+    // table's edge under a footprint three lines wide). In the first round each side is then read
+    // again from the first return whose beam lies a full divergence or more from this one's:
+    // outside every footprint that overlaps it, so on a surface if the return is within half the
+    // divergence of the edge. Tests 1-4 decide as before; the returns read past do not count
+    // against the sides' span (docs/mixed_pixels.md).
+    if (strength == kNoEdge && !v.focus && v.divergence > 0 && (v.across ? v.across_angle : v.along_angle) &&
+        (inside_footprint(v, seq, pos, -1) || inside_footprint(v, seq, pos, +1))) {
+      int skipped_l = 0, skipped_r = 0;
+      const Nb far_l = neighbours(v, seq, pos, -1, p, -1, v.divergence, &skipped_l);
+      const Nb far_r = neighbours(v, seq, pos, +1, p, -1, v.divergence, &skipped_r);
+      if (skipped_l + skipped_r > 0) strength = two_sided_edge(v, i, far_l, far_r, skipped_l + skipped_r, tol, p, coaxial);
     }
-    mixed[i] = std::max(mixed[i], strength);
+    if (strength != kNoEdge) mixed[i] = std::max(mixed[i], strength);
   }
 }
 

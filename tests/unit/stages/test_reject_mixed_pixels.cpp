@@ -679,9 +679,11 @@ TEST(RejectMixedPixels, TwoMixturesThatShareAFootprintDoNotVouchForEachOther) {
   // A near surface (5 m) and a far one (10 m) with two returns at 7 m between them: two mixtures
   // of one edge that keep each other's range, where the beams are closer than half the
   // divergence (each lies inside the other's footprint), so neither is a surface's witness; or a
-  // strip of surface two returns wide, where they are farther apart. Across lines (the same on
-  // every beam) and along the line (the same on every line), each with the beams inside and
-  // outside each other's footprint.
+  // strip of surface two returns wide, where the beams are farther apart than the divergence (no
+  // footprints overlap). Across lines (the same on every beam) and along the line (the same on
+  // every line), each with the beams inside and outside each other's footprint. (Between the two,
+  // footprints that overlap without holding each other's beam, the pair is judged against the
+  // surfaces past the footprint: ARampOfMixturesIsJudgedAgainstTheSurfacesPastItsFootprint.)
   const auto across_pass = [](double line_step) {
     std::vector<std::vector<float>> rows;
     std::vector<float> nods;
@@ -720,15 +722,15 @@ TEST(RejectMixedPixels, TwoMixturesThatShareAFootprintDoNotVouchForEachOther) {
     return n;
   };
   unsigned ev_across = 0, ev_along = 0, ignored = 0;
-  // Across lines: 3 mrad apart inside a 15 mrad footprint; 10 mrad apart; a pencil beam.
+  // Across lines: 3 mrad apart inside a 15 mrad footprint; 20 mrad apart; a pencil beam.
   const std::size_t across_shared = flagged_at_7m(across_pass(0.003), 0.015, &ev_across);
-  const std::size_t across_apart = flagged_at_7m(across_pass(0.010), 0.015, &ignored);
+  const std::size_t across_apart = flagged_at_7m(across_pass(0.020), 0.015, &ignored);
   const std::size_t across_pencil = flagged_at_7m(across_pass(0.003), 1e-9, &ignored);
   // Equal nod readings (a scanner that does not nod) cannot say the beams are close.
   const std::size_t across_equal = flagged_at_7m(across_pass(0.0), 0.015, &ignored);
-  // Along the line: bearings 10 mrad apart inside a 25 mrad footprint; a 15 mrad one.
+  // Along the line: bearings 10 mrad apart inside a 25 mrad footprint; a 9 mrad one.
   const std::size_t along_shared = flagged_at_7m(along_pass(), 0.025, &ev_along);
-  const std::size_t along_apart = flagged_at_7m(along_pass(), 0.015, &ignored);
+  const std::size_t along_apart = flagged_at_7m(along_pass(), 0.009, &ignored);
   std::printf("two returns at 7 m between 5 and 10 m: across lines %zu / %zu / %zu flagged (shared / apart / pencil); "
               "along %zu / %zu\n", across_shared, across_apart, across_pencil, along_shared, along_apart);
   EXPECT_EQ(across_shared, 42u);
@@ -741,4 +743,52 @@ TEST(RejectMixedPixels, TwoMixturesThatShareAFootprintDoNotVouchForEachOther) {
   EXPECT_NE(ev_along & kFlagMixedAlong, 0u);
   EXPECT_EQ(ev_along & kFlagMixedAcross, 0u);  // every line alike: flat across lines
   EXPECT_EQ(along_apart, 0u);
+}
+
+TEST(RejectMixedPixels, ARampOfMixturesIsJudgedAgainstTheSurfacesPastItsFootprint) {
+  // A table's edge over ground, across lines (the same on every beam, so every line is flat
+  // along): the table top nears the sensor by 0.12 m a line, the ground beyond recedes by
+  // 0.13-0.17 m a line, and between them three mixtures (6.03, 6.82, 7.29 m: the ranges of the
+  // sweep's setting 19, a 13 mrad footprint on lines 5.1 mrad apart). The ramp is an S, as a
+  // disc-shaped footprint crossing an edge makes it: no return in it shows an edge against its
+  // nearest neighbours, each has as steep a step on one side (a weak edge, or a corner, which a
+  // line flat along does not confirm). Judged against the surfaces a full divergence away, past
+  // the returns whose footprints overlap its own, the two that lie off both surfaces (6.03 and
+  // 6.82 m) are mixtures; 7.29 m continues the ground's trend (test 2) and is kept as ground.
+  // Lines farther apart than the footprint make no mixtures of one edge together: the same ranges
+  // are then a surface, read as with a pencil beam.
+  const std::vector<float> across = {4.09f, 4.21f, 4.33f, 4.45f, 4.57f, 4.69f, 4.81f, 4.93f, 5.05f, 5.17f,
+                                     5.29f, 5.41f, 6.03f, 6.82f, 7.29f, 7.42f, 7.55f, 7.69f, 7.84f, 8.00f,
+                                     8.17f, 8.35f, 8.54f, 8.74f, 8.95f, 9.17f, 9.40f, 9.64f, 9.89f, 10.15f};
+  const auto run = [&](double line_step, double divergence, std::size_t* surfaces_flagged) {
+    std::vector<std::vector<float>> rows;
+    std::vector<float> nods;
+    for (std::size_t k = 0; k < across.size(); ++k) {
+      rows.emplace_back(21, across[k]);
+      nods.push_back(static_cast<float>(line_step * static_cast<double>(k)));
+    }
+    Pass p = grid_pass(rows, nods);
+    SensorParams s = coaxial_sensor();
+    s.beam_divergence = divergence;
+    reject_mixed_pixels(p, MixedPixelParams{}, s);
+    std::size_t ramp = 0;
+    *surfaces_flagged = 0;
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      const std::size_t line = i / 21;
+      if (line == 12 || line == 13) ramp += p.label[i] == Label::kMixedPixel;
+      else if (line != 14) *surfaces_flagged += p.label[i] != Label::kKept;
+    }
+    return ramp;
+  };
+  std::size_t surf_wide = 0, surf_apart = 0, surf_pencil = 0;
+  const std::size_t wide = run(0.0051, 0.013, &surf_wide);      // footprint 2.5 lines wide
+  const std::size_t apart = run(0.020, 0.013, &surf_apart);     // lines farther apart than the footprint
+  const std::size_t pencil = run(0.0051, 1e-9, &surf_pencil);   // no footprint to read past
+  std::printf("ramp of mixtures across 21 beams: %zu of 42 off both surfaces flagged (lines apart %zu, pencil beam %zu); "
+              "surface returns flagged %zu / %zu / %zu\n", wide, apart, pencil, surf_wide, surf_apart, surf_pencil);
+  EXPECT_EQ(wide, 42u);
+  EXPECT_EQ(apart, pencil);
+  EXPECT_LT(pencil, 42u);
+  EXPECT_EQ(surf_wide, 0u);
+  EXPECT_EQ(surf_apart, 0u);
 }
