@@ -795,6 +795,37 @@ TEST(Bench, BadArgumentsAreConfigurationErrors) {
   EXPECT_NE(r.err.find("/nonexistent/scene.yaml"), std::string::npos) << r.err;
 }
 
+TEST(Bench, AnInterruptedBenchRemovesItsScratchFolder) {
+  // bench simulates passes and runs the pipeline in a scratch folder under TMPDIR; a SIGTERM or
+  // a Ctrl-C (SIGINT) while it works removes that folder, and the exit status is 128 + the signal.
+  for (const int sig : {SIGTERM, SIGINT}) {
+    const std::string tmp = test::fresh_dir();
+    const pid_t pid = fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+      setenv("TMPDIR", tmp.c_str(), 1);
+      execl(PCDP_CLI_PATH, PCDP_CLI_PATH, "bench", "--passes", "20", "--reps", "5", static_cast<char*>(nullptr));
+      _exit(127);
+    }
+    const std::string scratch = tmp + "/pcdp-bench-" + std::to_string(pid);
+    // Once the scratch folder exists, and a moment more: bench is simulating its passes (seconds).
+    bool working = false;
+    for (int i = 0; i < 20000 && !working; ++i) {
+      std::error_code ec;
+      working = fs::exists(scratch, ec);
+      if (!working) usleep(1000);
+    }
+    usleep(200 * 1000);
+    kill(pid, sig);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    ASSERT_TRUE(working) << "bench never made " << scratch;
+    ASSERT_TRUE(WIFEXITED(status)) << "bench did not exit by its signal cleanup (signal " << sig << ")";
+    EXPECT_EQ(WEXITSTATUS(status), 128 + sig);
+    EXPECT_FALSE(fs::exists(scratch)) << scratch << " was left behind";
+  }
+}
+
 // ---- real data: RPLIDAR C1 on a nodding servo (TurboSLAM) -----------------------------------
 
 TEST(Rplidar, ImportKeepsEveryBeamAndTheTiltGeometryAndSomeVeilsAreRejected) {

@@ -23,6 +23,7 @@
 #include "pcdp/pipeline/config.hpp"
 #include "pcdp/core/errors.hpp"
 #include "pcdp/core/georef.hpp"
+#include "pcdp/io/atomic_file.hpp"
 #include "pcdp/io/pcd.hpp"
 #include "pcdp/io/poses.hpp"
 #include "pcdp/fusion/octomap_fusion.hpp"
@@ -54,19 +55,6 @@ double time_median(int reps, F&& f) {
   }
   return median(t);
 }
-
-/// A scratch folder removed on every exit path.
-struct ScratchDir {
-  fs::path path;
-  ScratchDir() : path(fs::temp_directory_path() / ("pcdp-bench-" + std::to_string(::getpid()))) {
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~ScratchDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-};
 
 std::string human(double v) {
   char b[32];
@@ -256,15 +244,16 @@ int cmd_bench(BenchArgs a) {
   // Prepare first: a bad pipeline or scene fails before anything is simulated.
   (void)load_pipeline(a.pipeline, LoadOptions{{}, "", false});
   (void)load_scene(a.scene);
-  ScratchDir scratch;
-  const fs::path data = scratch.path / "data", out = scratch.path / "out";
+  // Removed on every exit path, a SIGINT, SIGTERM or SIGHUP included.
+  const io::ScratchFolder scratch((fs::temp_directory_path() / ("pcdp-bench-" + std::to_string(::getpid()))).string());
+  const fs::path root = scratch.path(), data = root / "data", out = root / "out";
   const std::size_t returns = simulate_to(a, a.passes, a.geometric, data);
 
   // Our chain: the real pipeline, median of reps; per-stage times from the run's own report. The
   // same chain on 2 worker threads, into another folder: time, and whether every output is
   // byte-identical (report.json aside: it holds timings). The two alternate, run by run, so both
   // see the same machine (a shared machine's speed drifts over seconds).
-  const fs::path out2 = scratch.path / "out-2threads";
+  const fs::path out2 = root / "out-2threads";
   std::vector<RunSummary> runs, runs2;
   std::vector<double> totals2;
   for (int r = 0; r < a.reps; ++r) {
@@ -419,7 +408,7 @@ int cmd_bench(BenchArgs a) {
   }
   std::printf("\n");
   std::fflush(stdout);
-  if (!a.scaling.empty()) return run_scaling(a, scratch.path);
+  if (!a.scaling.empty()) return run_scaling(a, root);
   return 0;
 }
 

@@ -576,6 +576,21 @@ void StagedFiles::commit() {
   }
 }
 
+ScratchFolder::ScratchFolder(std::string path) : path_(std::move(path)) {
+  remove_tree(path_);
+  const BlockSignals hold;  // registered for the signal cleanup before a signal can act
+  std::error_code ec;
+  fs::create_directories(path_, ec);
+  if (ec) throw OutputError("cannot create the scratch folder " + path_ + " (" + ec.message() + ")");
+  slot_ = register_temp(path_, 2);
+}
+
+ScratchFolder::~ScratchFolder() {
+  std::error_code ec;
+  fs::remove_all(path_, ec);
+  unregister_temp(slot_);
+}
+
 void write_file_atomic(const std::string& path, const std::string& content) {
   StagedFiles files;
   const std::string tmp = files.add(path, path);

@@ -131,6 +131,23 @@ class StagedFiles {
   bool committed_ = false;
 };
 
+/// A scratch folder for a command's own intermediate files (`pcd_pipeline bench`'s simulated
+/// passes and runs): created empty (a leftover of the same path is removed first) and removed
+/// when this object is destroyed, and, once install_signal_cleanup() is in place, by SIGINT,
+/// SIGTERM or SIGHUP before the process exits. Throws OutputError when it cannot be created.
+class ScratchFolder {
+ public:
+  explicit ScratchFolder(std::string path);
+  ~ScratchFolder();
+  ScratchFolder(const ScratchFolder&) = delete;
+  ScratchFolder& operator=(const ScratchFolder&) = delete;
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+  int slot_ = -1;  // in the signal cleanup table
+};
+
 /// Writes `content` to `path` atomically (temporary file in the same folder, then rename).
 /// Throws OutputError naming the path and the reason.
 void write_file_atomic(const std::string& path, const std::string& content);
