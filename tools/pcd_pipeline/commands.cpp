@@ -33,6 +33,7 @@
 #include "pcdp/import/rplidar.hpp"
 #include "pcdp/import/scans.hpp"
 #include "pcdp/io/las.hpp"
+#include "pcdp/io/paths.hpp"
 #include "pcdp/models/nod_plan.hpp"
 #include "pcdp/io/svg_plot.hpp"
 #include "pcdp/models/occlusion_model.hpp"
@@ -61,12 +62,10 @@ LoadOptions load_options(const RunArgs& a) {
 void check_not_input(const std::string& option, const std::string& path, const std::vector<std::string>& others,
                      const std::string& role = "an input of the command") {
   for (const auto& in : others) {
-    std::error_code e1, e2, e3;
-    const bool same_inode = std::filesystem::equivalent(path, in, e1) && !e1;
-    // Absolute first: the canonical form of a relative path none of whose parts exists stays relative.
-    const auto a = std::filesystem::weakly_canonical(std::filesystem::absolute(path, e2), e2),
-               b = std::filesystem::weakly_canonical(std::filesystem::absolute(in, e3), e3);
-    if (same_inode || (!e2 && !e3 && !a.empty() && a == b))
+    std::error_code ec;
+    const bool same_inode = std::filesystem::equivalent(path, in, ec) && !ec;
+    const auto a = io::resolved_path(path), b = io::resolved_path(in);
+    if (same_inode || (!a.empty() && a == b))
       throw ConfigError(option + " '" + path + "' is " + role + " ('" + in + "'): it would be overwritten");
   }
 }

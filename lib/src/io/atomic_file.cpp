@@ -20,6 +20,7 @@
 
 #include "io/signal_cleanup.hpp"
 #include "pcdp/core/errors.hpp"
+#include "pcdp/io/paths.hpp"
 
 namespace fs = std::filesystem;
 
@@ -350,14 +351,12 @@ namespace {
 /// the folder's entry that holds it).
 std::vector<std::pair<std::string, std::string>> inputs_inside(const std::string& folder, const std::vector<std::string>& inputs) {
   std::vector<std::pair<std::string, std::string>> out;
-  std::error_code ec;
-  const fs::path f = fs::weakly_canonical(fs::absolute(folder, ec), ec);
-  if (ec) return out;
+  const fs::path f = resolved_path(folder);
+  if (f.empty()) return out;
   for (const auto& in : inputs) {
     if (in.empty()) continue;
-    std::error_code e2;
-    const fs::path p = fs::weakly_canonical(fs::absolute(in, e2), e2);
-    if (e2) continue;
+    const fs::path p = resolved_path(in);
+    if (p.empty()) continue;
     const fs::path rel = p.lexically_relative(f);
     if (!rel.empty() && *rel.begin() != ".." && *rel.begin() != ".") out.emplace_back(in, rel.begin()->string());
   }

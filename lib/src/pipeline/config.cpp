@@ -19,6 +19,7 @@
 #include "pcdp/core/errors.hpp"
 #include "pcdp/io/geotiff.hpp"
 #include "pcdp/io/input_file.hpp"
+#include "pcdp/io/paths.hpp"
 #include "pcdp/pipeline/stage.hpp"
 #include "pipeline/config_yaml.hpp"
 
@@ -94,9 +95,8 @@ std::vector<std::string> expand_scans(const std::string& where, const std::vecto
   if (check) {
     std::set<std::string> seen;
     for (const auto& f : out) {
-      std::error_code ec;
-      std::string canon = fs::weakly_canonical(f, ec).string();
-      if (ec) canon = fs::absolute(f, ec).lexically_normal().string();
+      std::string canon = io::resolved_path(f).string();
+      if (canon.empty()) canon = f;  // unreadable: compared as given
       if (!seen.insert(canon).second)
         throw InputError(where + ": input.scans: pass file '" + f +
                          "' is listed twice (line indices must be unique within a run)");
