@@ -345,19 +345,22 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
     char strength = two_sided_edge(v, i, l, r, 0, tol, p, coaxial);
     // Past the footprint: where the beams are closer than the divergence, a mixture's nearest
     // neighbours may be mixtures of the same edge (their footprints overlap this one's), and a
-    // run of them makes a ramp from one surface to the other whose every step has a steeper step
-    // beside it, so no return in it shows an edge against its nearest neighbours (behind a
-    // table's edge under a footprint three lines wide). In the first round each side is then read
-    // again from the first return whose beam lies a full divergence or more from this one's:
-    // outside every footprint that overlaps it, so on a surface if the return is within half the
-    // divergence of the edge. Tests 1-4 decide as before; the returns read past do not count
-    // against the sides' span (docs/mixed_pixels.md).
-    if (strength == kNoEdge && !v.focus && v.divergence > 0 && (v.across ? v.across_angle : v.along_angle) &&
+    // run of them makes a ramp from one surface to the other with a step beside every return as
+    // steep as the one across it, so against its nearest neighbours no return in it shows more
+    // than a weak edge or a corner, which a line flat in the other direction does not confirm
+    // (behind a table's edge under a footprint three lines wide). In the first round, unless a
+    // strong edge was found, each side is then read again from the first return whose beam lies a
+    // full divergence or more from this one's: outside every footprint that overlaps it, so on a
+    // surface if the return is within half the divergence of the edge. Tests 1-4 decide as
+    // before, the stronger verdict stands, and the returns read past do not count against the
+    // sides' span (docs/mixed_pixels.md).
+    if (strength < kStrongEdge && !v.focus && v.divergence > 0 && (v.across ? v.across_angle : v.along_angle) &&
         (inside_footprint(v, seq, pos, -1) || inside_footprint(v, seq, pos, +1))) {
       int skipped_l = 0, skipped_r = 0;
       const Nb far_l = neighbours(v, seq, pos, -1, p, -1, v.divergence, &skipped_l);
       const Nb far_r = neighbours(v, seq, pos, +1, p, -1, v.divergence, &skipped_r);
-      if (skipped_l + skipped_r > 0) strength = two_sided_edge(v, i, far_l, far_r, skipped_l + skipped_r, tol, p, coaxial);
+      if (skipped_l + skipped_r > 0)
+        strength = std::max(strength, two_sided_edge(v, i, far_l, far_r, skipped_l + skipped_r, tol, p, coaxial));
     }
     if (strength != kNoEdge) mixed[i] = std::max(mixed[i], strength);
   }
