@@ -6,12 +6,14 @@
 #include "bench.hpp"
 
 #include <octomap/OcTree.h>
+#include <sys/prctl.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
+#include <csignal>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -188,8 +190,13 @@ int run_scaling(const BenchArgs& a, const fs::path& scratch) {
     for (auto& s : args) argv.push_back(s.data());
     argv.push_back(nullptr);
     const auto t0 = Clock::now();
+    const pid_t parent = ::getpid();
     const pid_t pid = ::fork();
     if (pid == 0) {
+      // The run ends with bench: a SIGTERM to bench alone (whose signal cleanup removes the scratch
+      // folder the run writes in) reaches the run too, and its own cleanup removes its staging.
+      ::prctl(PR_SET_PDEATHSIG, SIGTERM);
+      if (::getppid() != parent) ::_exit(128 + SIGTERM);
       ::execv(argv[0], argv.data());
       ::_exit(127);
     }

@@ -96,7 +96,7 @@ std::vector<std::string> expand_scans(const std::string& where, const std::vecto
     std::set<std::string> seen;
     for (const auto& f : out) {
       std::string canon = io::resolved_path(f).string();
-      if (canon.empty()) canon = f;  // unreadable: compared as given
+      if (canon.empty()) canon = f;  // no working directory: compared as given
       if (!seen.insert(canon).second)
         throw InputError(where + ": input.scans: pass file '" + f +
                          "' is listed twice (line indices must be unique within a run)");

@@ -13,13 +13,14 @@ namespace pcdp::io {
 /// `path` made absolute against the working directory, then resolved: the symlinks and `.` and
 /// `..` of its existing part followed, the rest normalized (std::filesystem::weakly_canonical;
 /// absolute first, since the canonical form of a relative path none of whose parts exists stays
-/// relative). Empty when the working directory or a component cannot be read.
+/// relative). Where a component cannot be read, the absolute path in normal form (no symlink
+/// followed); empty when the working directory cannot be read.
 inline std::filesystem::path resolved_path(const std::string& path) {
   std::error_code ec;
   const std::filesystem::path a = std::filesystem::absolute(path, ec);
   if (ec) return {};
   std::filesystem::path r = std::filesystem::weakly_canonical(a, ec);
-  if (ec) return {};
+  if (ec) return a.lexically_normal();
   return r;
 }
 
