@@ -34,12 +34,13 @@ using namespace detail::shard;
 namespace {
 /// 2: paths made absolute in the plan's folder (the hash sees them), passes partials with their records' digests.
 constexpr const char* kPlanTag = "pcdp.shard_plan.2";
+/// Whether a plan's tag is another version's.
+bool another_versions_tag(const std::string& tag) { return tag.rfind("pcdp.shard_plan.", 0) == 0 && tag != kPlanTag; }
 /// Whether `path` is a plan of another version of pcd_pipeline.
 bool older_plan(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   try {
-    const std::string tag = pio::get_str(in);
-    return tag.rfind("pcdp.shard_plan.", 0) == 0 && tag != kPlanTag;
+    return another_versions_tag(pio::get_str(in));
   } catch (const std::exception&) {
     return false;
   }
@@ -120,7 +121,7 @@ ShardPlan read_shard_plan(const std::string& w) {
   ShardPlan p;
   named(path, [&] {
     const std::string tag = pio::get_str(in);
-    if (tag.rfind("pcdp.shard_plan.", 0) == 0 && tag != kPlanTag)
+    if (another_versions_tag(tag))
       throw InputError("a plan made by another version of pcd_pipeline (" + tag + ", this one reads " + kPlanTag +
                        "): plan again (`pcd_pipeline shard` replaces it)");
     if (tag != kPlanTag) throw InputError("not a shard plan");

@@ -42,6 +42,37 @@ double quantile(std::vector<double> v, double q) {
   std::nth_element(v.begin(), v.begin() + static_cast<long>(i), v.end());
   return v[i];
 }
+/// The run must have read this simulation's scans: report.json lists its inputs with their
+/// SHA-256, and a run of another simulation with the same scanner would otherwise be scored
+/// against the wrong truth without a word. A report without the list (an older version's) checks
+/// nothing.
+void require_run_of_these_scans(const std::string& truth_dir, const std::string& run_dir) {
+  const fs::path report = fs::path(run_dir) / "report.json";
+  std::error_code ec;
+  if (!fs::is_regular_file(report, ec)) return;
+  std::vector<std::string> run_scans;
+  try {
+    std::ifstream in(report);
+    const auto j = nlohmann::json::parse(in);
+    for (const auto& f : j.at("inputs"))
+      if (f.value("kind", "") == "scan") run_scans.push_back(f.at("sha256").get<std::string>());
+  } catch (const std::exception&) {
+    return;
+  }
+  if (run_scans.empty()) return;
+  std::size_t ours = 0, scans = 0;
+  for (const auto& e : fs::directory_iterator(truth_dir, ec)) {
+    const std::string n = e.path().filename().string();
+    if (n.rfind("pass_", 0) != 0 || e.path().extension() != ".pcd") continue;
+    ++scans;
+    io::FileDigest d;
+    if (io::digest_file(e.path().string(), d) == 0 && std::count(run_scans.begin(), run_scans.end(), d.sha256)) ++ours;
+  }
+  if (scans > 0 && ours == 0)
+    throw InputError(run_dir + ": the run read none of the " + std::to_string(scans) + " scans of " + truth_dir +
+                     " (report.json's inputs and the scans' SHA-256 differ): evaluate it against the simulation "
+                     "its scans came from");
+}
 }  // namespace
 
 Evaluation evaluate_run(const std::string& truth_dir, const std::string& run_dir, const NoiseModel& noise) {
@@ -65,38 +96,7 @@ Evaluation evaluate_run(const std::string& truth_dir, const std::string& run_dir
       truth[key(line[i], beam[i])] = {x[i], y[i], z[i], static_cast<Label>(label[i])};
   }
 
-  // The run must have read this simulation's scans: report.json lists its inputs with their
-  // SHA-256, and a run of another simulation with the same scanner would otherwise be scored
-  // against the wrong truth without a word.
-  {
-    const fs::path report = fs::path(run_dir) / "report.json";
-    std::error_code ec;
-    if (fs::is_regular_file(report, ec)) {
-      std::vector<std::string> run_scans;
-      try {
-        std::ifstream in(report);
-        const auto j = nlohmann::json::parse(in);
-        for (const auto& f : j.at("inputs"))
-          if (f.value("kind", "") == "scan") run_scans.push_back(f.at("sha256").get<std::string>());
-      } catch (const std::exception&) {
-        run_scans.clear();  // a report without the list (an older version's) checks nothing
-      }
-      if (!run_scans.empty()) {
-        std::size_t ours = 0, scans = 0;
-        for (const auto& e : fs::directory_iterator(truth_dir, ec)) {
-          const std::string n = e.path().filename().string();
-          if (n.rfind("pass_", 0) != 0 || e.path().extension() != ".pcd") continue;
-          ++scans;
-          io::FileDigest d;
-          if (io::digest_file(e.path().string(), d) == 0 && std::count(run_scans.begin(), run_scans.end(), d.sha256)) ++ours;
-        }
-        if (scans > 0 && ours == 0)
-          throw InputError(run_dir + ": the run read none of the " + std::to_string(scans) + " scans of " + truth_dir +
-                           " (report.json's inputs and the scans' SHA-256 differ): evaluate it against the simulation "
-                           "its scans came from");
-      }
-    }
-  }
+  require_run_of_these_scans(truth_dir, run_dir);
   const std::string rfile = (fs::path(run_dir) / "returns.pcd").string();
   const io::PcdTable r = io::read_pcd(rfile);
   const auto pass = col(r, "pass", rfile), line = col(r, "line", rfile), beam = col(r, "beam", rfile),

@@ -27,6 +27,14 @@ struct Nb {
   bool beside_void = false;  ///< the next position on this side holds no usable return (not the end of the scan)
 };
 
+/// Whether the beams of returns k and i are closer than `within` (rad) in the view's scan
+/// direction. Equal readings (a scanner that does not nod, an encoder's plateau) cannot say the
+/// beams are close; bearings may wrap at +-pi.
+bool beams_closer(const float* ang, std::size_t k, std::size_t i, double within) {
+  const double d = std::fabs(static_cast<double>(ang[k]) - ang[i]);
+  return d > 0 && std::min(d, 2 * kPi - d) < within;
+}
+
 /// A side's nearest returns within the window. With look_through_tol >= 0, the nearest is not one
 /// whose beam lies inside the return's footprint and whose range is within look_through_tol of its.
 /// With min_angle > 0, the nearest is not one whose beam lies closer than min_angle to the return's
@@ -44,20 +52,14 @@ Nb neighbours(const ReturnsView& v, const std::vector<std::size_t>& seq, std::si
     if (q < 0 || q >= static_cast<long>(seq.size())) break;
     const std::size_t k = seq[static_cast<std::size_t>(q)];
     if (!v.usable[k]) continue;
-    if (nb.count == 0 && min_angle > 0 && ang) {
-      const double d = std::fabs(static_cast<double>(ang[k]) - ang[self]);
-      if (d > 0 && std::min(d, 2 * kPi - d) < min_angle) {
-        if (skipped) *skipped = step;
-        continue;
-      }
+    if (nb.count == 0 && min_angle > 0 && ang && beams_closer(ang, k, self, min_angle)) {
+      if (skipped) *skipped = step;
+      continue;
     }
     if (nb.count == 0 && look_through_tol >= 0 && ang &&
-        std::fabs(static_cast<double>(v.range[k]) - v.range[self]) <= look_through_tol) {
-      // Equal readings (a scanner that does not nod, an encoder's plateau) cannot say the beams
-      // are close; bearings may wrap at +-pi.
-      const double d = std::fabs(static_cast<double>(ang[k]) - ang[self]);
-      if (d > 0 && std::min(d, 2 * kPi - d) < 0.5 * v.divergence) continue;
-    }
+        std::fabs(static_cast<double>(v.range[k]) - v.range[self]) <= look_through_tol &&
+        beams_closer(ang, k, self, 0.5 * v.divergence))
+      continue;
     if (nb.count < 2) {
       nb.idx[nb.count] = k;
       nb.r[nb.count] = v.range[k];
@@ -218,9 +220,7 @@ bool inside_footprint(const ReturnsView& v, const std::vector<std::size_t>& seq,
   if (q < 0 || q >= static_cast<long>(seq.size())) return false;
   const std::size_t k = seq[static_cast<std::size_t>(q)];
   if (!v.usable[k]) return true;
-  const float* ang = v.across ? v.across_angle : v.along_angle;
-  const double d = std::fabs(static_cast<double>(ang[k]) - ang[seq[pos]]);
-  return d > 0 && std::min(d, 2 * kPi - d) < v.divergence;
+  return beams_closer(v.across ? v.across_angle : v.along_angle, k, seq[pos], v.divergence);
 }
 
 /// Tests 1-4 (docs/mixed_pixels.md) at return i between sides l and r: the kind of edge found
