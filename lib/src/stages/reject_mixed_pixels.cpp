@@ -38,7 +38,8 @@ bool beams_closer(const float* ang, std::size_t k, std::size_t i, double within)
 /// A side's nearest returns within the window. With look_through_tol >= 0, the nearest is not one
 /// whose beam lies inside the return's footprint and whose range is within look_through_tol of its.
 /// With min_angle > 0, the nearest is not one whose beam lies closer than min_angle to the return's
-/// (`skipped`: the farthest position passed so).
+/// (`skipped`: the farthest position passed so); the window then starts past them, up to
+/// kFootprintReach positions out.
 Nb neighbours(const ReturnsView& v, const std::vector<std::size_t>& seq, std::size_t pos, int dir, const MixedPixelParams& p,
               double look_through_tol = -1, double min_angle = 0, int* skipped = nullptr) {
   Nb nb;
@@ -47,13 +48,15 @@ Nb neighbours(const ReturnsView& v, const std::vector<std::size_t>& seq, std::si
   const long next = static_cast<long>(pos) + dir;
   nb.beside_void = next >= 0 && next < static_cast<long>(seq.size()) ? !v.usable[seq[static_cast<std::size_t>(next)]]
                                                                      : v.ends_are_voids;
-  for (int step = 1; step <= p.window && !nb.has3; ++step) {
+  int limit = p.window;
+  for (int step = 1; step <= limit && !nb.has3; ++step) {
     const long q = static_cast<long>(pos) + dir * step;
     if (q < 0 || q >= static_cast<long>(seq.size())) break;
     const std::size_t k = seq[static_cast<std::size_t>(q)];
     if (!v.usable[k]) continue;
     if (nb.count == 0 && min_angle > 0 && ang && beams_closer(ang, k, self, min_angle)) {
       if (skipped) *skipped = step;
+      if (step <= kFootprintReach) limit = std::max(limit, step + p.window);
       continue;
     }
     if (nb.count == 0 && look_through_tol >= 0 && ang &&
@@ -223,6 +226,26 @@ bool inside_footprint(const ReturnsView& v, const std::vector<std::size_t>& seq,
   return beams_closer(v.across ? v.across_angle : v.along_angle, k, seq[pos], v.divergence);
 }
 
+/// Beside a void past the footprint (across lines, the first round): whether return `pos`, its
+/// sides read past its footprint (far_l, far_r; skipped_l, skipped_r positions read past), has
+/// one side that is a surface and the other a void (its first position past the returns read
+/// past is in the sequence: not the end of the sweep), and breaks from that surface's trend as a
+/// mixture with the void does (breaks_from_side). Where the nod slows to its turns a footprint
+/// spans many lines, and a ramp of mixtures between a surface and a background too weak to
+/// return (a wall's top against a far, dark ground) is as deep: the returns next to the void are
+/// judged beside it and the later rounds peel two more, but the ones deeper in have mixtures on
+/// both sides. Along a line the footprint spans divergence / bearing step beams, which the rounds
+/// peel (docs/mixed_pixels.md).
+bool beside_void_past_footprint(const ReturnsView& v, const std::vector<std::size_t>& seq, std::size_t pos, const Nb& far_l,
+                                int skipped_l, const Nb& far_r, int skipped_r, double tol, const MixedPixelParams& p) {
+  if ((far_l.count == 0) == (far_r.count == 0)) return false;
+  const bool void_right = far_l.count > 0;
+  const int void_skipped = void_right ? skipped_r : skipped_l;
+  const long first_past = static_cast<long>(pos) + (void_right ? 1 : -1) * (void_skipped + 1);
+  return void_skipped > 0 && first_past >= 0 && first_past < static_cast<long>(seq.size()) &&
+         breaks_from_side(v, seq[pos], void_right ? far_l : far_r, void_right ? far_r : far_l, tol, p);
+}
+
 /// Tests 1-4 (docs/mixed_pixels.md) at return i between sides l and r: the kind of edge found
 /// (kNoEdge where a test fails). `skipped` positions were read past on the two sides together
 /// (returns inside the footprint), which do not count against the sides' span.
@@ -361,6 +384,11 @@ void mark_mixed_pixels(const ReturnsView& v, const std::vector<std::size_t>& seq
       const Nb far_r = neighbours(v, seq, pos, +1, p, -1, v.divergence, &skipped_r);
       if (skipped_l + skipped_r > 0)
         strength = std::max(strength, two_sided_edge(v, i, far_l, far_r, skipped_l + skipped_r, tol, p, coaxial));
+      if (strength == kNoEdge && v.across && p.one_sided &&
+          beside_void_past_footprint(v, seq, pos, far_l, skipped_l, far_r, skipped_r, tol, p)) {
+        mixed[i] = kBesideVoid;
+        continue;
+      }
     }
     if (strength != kNoEdge) mixed[i] = std::max(mixed[i], strength);
   }

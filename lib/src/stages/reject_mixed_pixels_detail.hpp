@@ -15,6 +15,10 @@ namespace pcdp::mixed_detail {
 constexpr int kMaxExtraRounds = 2;
 /// Returns searched each way in the rounds after the first.
 constexpr int kRoundWindow = 3;
+/// The most returns a side is read past inside the footprint before its window of
+/// MixedPixelParams::window returns starts (the first round's reading past the footprint): a
+/// footprint 16 lines deep, 15 mrad where the nod moves less than 1 mrad a line near its turns.
+constexpr int kFootprintReach = 16;
 /// Lines searched each way for the object a spike may be a mixture with: the pure returns of a
 /// post's top are within two or three lines of its mixtures near a nod reversal, where the nod
 /// barely moves from line to line.

@@ -23,8 +23,9 @@ class RejectMixedPixelsStage final : public Stage {
       : params_(p), sensor_(ctx.config->sensor), pose_sigma_(ctx.poses ? ctx.config->pose_sigma : PoseSigma{0.0, 0.0}) {}
   StageKind kind() const override { return StageKind::kLabeller; }
   // Across lines it looks MixedPixelParams::window lines (fixed at 8 for pipelines; kObjectReach
-  // for a spike's object, within it) each way, plus one to read a nod reversal at the last of
-  // them: 15 lines with the extra rounds. The max and min below keep it right for any window.
+  // for a spike's object, within it) each way, past up to kFootprintReach lines inside a
+  // footprint, plus one to read a nod reversal at the last of them: 31 lines with the extra
+  // rounds. The max and min below keep it right for any window.
   int reach() const override {
     // Without the tests across lines, a side's 2-D patch still reads whether the same beam on the
     // lines before and after is usable, which each extra round reads after the round before has
@@ -32,7 +33,7 @@ class RejectMixedPixelsStage final : public Stage {
     if (!params_.across_lines) return 1 + kMaxExtraRounds;
     // Each extra round (runs of mixtures) reads its narrower window across the lines the round
     // before labelled (the nod reversals it also reads are raw data: no more lines).
-    return std::max(params_.window, params_.spikes ? static_cast<int>(kObjectReach) : 0) + 1 +
+    return std::max(params_.window + kFootprintReach, params_.spikes ? static_cast<int>(kObjectReach) : 0) + 1 +
            kMaxExtraRounds * std::min(params_.window, kRoundWindow);
   }
   void label(Pass& pass, StageReport& report) const override {

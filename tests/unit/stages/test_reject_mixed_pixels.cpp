@@ -13,6 +13,7 @@
 #include "pcdp/import/3dtk.hpp"
 #include "sim/bench_scenes.hpp"
 #include "pcdp/stages/register.hpp"
+#include "pcdp/models/mixing_model.hpp"
 #include "pcdp/stages/reject_mixed_pixels.hpp"
 #include "pcdp/stages/reject_occlusion.hpp"
 #include "pcdp_test_paths.hpp"
@@ -68,6 +69,28 @@ std::vector<bool> flagged_at_beam_10(Pass p, const MixedPixelParams& mp) {
   std::vector<bool> f;
   for (std::size_t k = 0; k < p.line_count(); ++k) f.push_back(p.label[p.line_begin[k] + 10] == Label::kMixedPixel);
   return f;
+}
+/// How many returns of `raw` the pipeline stage labels otherwise than `batch` (the whole pass
+/// through reject_mixed_pixels) when each line is labelled in a window of the stage's reach on
+/// each side, as `LineStream` does. The reach must exceed 8 lines (the window alone).
+std::size_t labels_streamed_otherwise(const Pass& raw, const Pass& batch, const SensorParams& s) {
+  PipelineConfig cfg;
+  cfg.sensor = s;
+  RunContext ctx;
+  ctx.config = &cfg;
+  const auto stage = reject_mixed_pixels_stage_info().create(StageConfig{"reject_mixed_pixels", "reject_mixed_pixels", "test", {}}, ctx);
+  const std::size_t reach = static_cast<std::size_t>(stage->reach());
+  EXPECT_GT(reach, 8u);
+  std::size_t differ = 0;
+  for (std::size_t k = 0; k < raw.line_count(); ++k) {
+    const std::size_t from = k >= reach ? k - reach : 0, to = std::min(raw.line_count(), k + reach + 1);
+    Pass w = lines_of(raw, from, to);
+    StageReport report;
+    stage->label(w, report);
+    for (std::size_t i = raw.line_begin[k]; i < raw.line_begin[k + 1]; ++i)
+      differ += w.label[i - raw.line_begin[from]] != batch.label[i];
+  }
+  return differ;
 }
 }  // namespace
 
@@ -603,32 +626,16 @@ TEST(RejectMixedPixels, RoundsAcrossLinesFollowTheLocalNodStepAndAWindowDecidesA
   EXPECT_GT(slow_rounds, slow_one);   // several lines per footprint: the rounds peel the ramps
   EXPECT_EQ(fast_rounds, fast_one);   // less than one line per footprint: no round past the first
   // Each line as a streamed window labels it: the stage's reach on each side.
-  PipelineConfig cfg;
-  cfg.sensor = s;
-  RunContext ctx;
-  ctx.config = &cfg;
-  const auto stage = reject_mixed_pixels_stage_info().create(StageConfig{"reject_mixed_pixels", "reject_mixed_pixels", "test", {}}, ctx);
-  const std::size_t reach = static_cast<std::size_t>(stage->reach());
-  ASSERT_GT(reach, 8u);
-  std::size_t differ = 0;
-  for (std::size_t k = 0; k < p.line_count(); ++k) {
-    const std::size_t from = k >= reach ? k - reach : 0, to = std::min(p.line_count(), k + reach + 1);
-    Pass w = lines_of(p, from, to);
-    StageReport report;
-    stage->label(w, report);
-    for (std::size_t i = p.line_begin[k]; i < p.line_begin[k + 1]; ++i)
-      differ += w.label[i - p.line_begin[from]] != batch.label[i];
-  }
-  EXPECT_EQ(differ, 0u);
+  EXPECT_EQ(labels_streamed_otherwise(p, batch, s), 0u);
 }
 
 TEST(RejectMixedPixels, RoundsPeelRunsAcrossLinesOnlyWhereTheFootprintsOverlap) {
   // A near surface (5 m) over a far one (10 m), the same on every beam, with a ramp of three
   // returns between them across lines. The footprint (15 mrad) is wider than the bearing step
-  // (10 mrad), so the stage runs a later round. Where the lines are 2 mrad apart the footprint
-  // spans eight of them and the ramp is a run of mixtures; the surfaces a full divergence away
-  // lie beyond the window, so the first round cannot judge the inner returns past the footprint
-  // and the later rounds peel the run. Where the lines are 20 mrad apart the footprints of two
+  // (10 mrad), so the stage runs a later round. Where the lines are 0.5 mrad apart the footprint
+  // spans thirty of them and the ramp is a run of mixtures; the surfaces a full divergence away
+  // lie farther than the first round reads past a footprint (kFootprintReach lines), so it cannot
+  // judge the inner returns past the footprint and the later rounds peel the run. Where the lines are 20 mrad apart the footprints of two
   // lines do not overlap: no run spans them, and the later round does not test the other line's
   // return again (the first round's verdict stands, as with a pencil beam). Each flagged return
   // says what found it (Pass::flags).
@@ -665,9 +672,9 @@ TEST(RejectMixedPixels, RoundsPeelRunsAcrossLinesOnlyWhereTheFootprintsOverlap) 
     return n;
   };
   std::uint8_t dense_ev = 0, sparse_ev = 0, ignored = 0;
-  const std::size_t dense = flagged(0.002, 0.015, &dense_ev), dense_pencil = flagged(0.002, 1e-9, &ignored);
+  const std::size_t dense = flagged(0.0005, 0.015, &dense_ev), dense_pencil = flagged(0.0005, 1e-9, &ignored);
   const std::size_t sparse = flagged(0.020, 0.015, &sparse_ev), sparse_pencil = flagged(0.020, 1e-9, &ignored);
-  std::printf("ramp across lines: 2 mrad apart %zu flagged (%zu with a pencil beam), 20 mrad apart %zu (%zu)\n", dense,
+  std::printf("ramp across lines: 0.5 mrad apart %zu flagged (%zu with a pencil beam), 20 mrad apart %zu (%zu)\n", dense,
               dense_pencil, sparse, sparse_pencil);
   EXPECT_GT(dense, dense_pencil);                  // a run of mixtures: the later rounds peel it
   EXPECT_NE(dense_ev & kFlagMixedRun, 0);          // ... and the peeled returns say so
@@ -805,4 +812,76 @@ TEST(RejectMixedPixels, ARampOfMixturesIsJudgedAgainstTheSurfacesPastItsFootprin
   EXPECT_EQ(pencil, 0u);
   EXPECT_EQ(surf_wide, 0u);
   EXPECT_EQ(surf_apart, 0u);
+}
+
+TEST(RejectMixedPixels, ARampIntoAVoidIsJudgedBesideTheVoidPastItsFootprint) {
+  // A wall's top at 8 m against a far ground (28 m) too dark to return on its own (the sweep's
+  // setting 8012), across lines (the same on every beam): 30 lines on the wall, then 15 lines
+  // whose 15 mrad footprint leaves the wall, a disc's share f on it, at the mixing model's range
+  // and amplitude (the ground returns 2.5 % of the wall's power), then no return once the
+  // mixture is too weak. The lines are 1 mrad apart (a nod near its turn), so the ramp is as
+  // deep as the footprint: the return next to the void is judged beside it, the later rounds peel
+  // two more, and the ones deeper in have mixtures on both sides. Read past the footprint, one
+  // side is the wall and the other the void, and the one-sided test decides.
+  const double kPi = 3.14159265358979323846;
+  std::vector<float> ramp, amp;
+  for (int k = 0; k < 15; ++k) {
+    const double x = -1.0 + (k + 0.5) * 2.0 / 15.0;  // the beam's distance past the edge, in footprint radii
+    const double f = (std::acos(x) - x * std::sqrt(1 - x * x)) / kPi;
+    const double r = mixture_range(f, 8.0, 100.0, 28.0, 2.5);
+    ramp.push_back(static_cast<float>(r));
+    amp.push_back(static_cast<float>(mixture_amplitude_at(r, 8.0, 100.0, 28.0, 2.5)));
+  }
+  const auto make = [&](double line_step) {
+    std::vector<std::vector<float>> rows;
+    std::vector<float> nods;
+    for (std::size_t k = 0; k < 60; ++k) {
+      const float r = k < 30 ? 8.0f : k < 30 + ramp.size() ? ramp[k - 30] : 0.0f;  // 0: no return
+      rows.emplace_back(21, r);
+      nods.push_back(static_cast<float>(line_step * static_cast<double>(k)));
+    }
+    Pass p = grid_pass(rows, nods);
+    for (std::size_t i = 0; i < p.size(); ++i)
+      if (i / 21 >= 30 && i / 21 < 30 + ramp.size()) p.amplitude[i] = amp[i / 21 - 30];
+    return p;
+  };
+  SensorParams s = coaxial_sensor();
+  s.beam_divergence = 0.015;
+  // The deep mixtures (lines 38-40, 8.68-9.38 m: more than three lines from the void) flagged,
+  // with their evidence, and the wall's returns flagged. The returns before them (8.25-8.49 m)
+  // continue the ramp's own smooth trend and are settled as a surface (docs/mixed_pixels.md).
+  const auto count = [&](const Pass& p, std::size_t* wall_flagged, std::uint8_t* evidence) {
+    std::size_t deep = 0;
+    *wall_flagged = 0;
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      const std::size_t line = i / 21;
+      if (line < 30) *wall_flagged += p.label[i] != Label::kKept;
+      if (line >= 38 && line <= 40 && p.label[i] == Label::kMixedPixel) {
+        ++deep;
+        *evidence |= p.flags[i];
+      }
+    }
+    return deep;
+  };
+  Pass batch = make(0.001), pencil = make(0.001), apart = make(0.020);
+  reject_mixed_pixels(batch, MixedPixelParams{}, s);
+  SensorParams pencil_sensor = s;
+  pencil_sensor.beam_divergence = 1e-9;
+  reject_mixed_pixels(pencil, MixedPixelParams{}, pencil_sensor);
+  reject_mixed_pixels(apart, MixedPixelParams{}, s);
+  std::size_t wall = 0, wall_pencil = 0, wall_apart = 0;
+  std::uint8_t ev = 0, ignored = 0;
+  const std::size_t deep = count(batch, &wall, &ev), deep_pencil = count(pencil, &wall_pencil, &ignored),
+                    deep_apart = count(apart, &wall_apart, &ignored);
+  std::printf("ramp into a void, 15 mrad footprint on lines 1 mrad apart: %zu of 63 deep mixtures flagged (pencil beam %zu, "
+              "lines 20 mrad apart %zu); wall returns flagged %zu / %zu / %zu\n", deep, deep_pencil, deep_apart, wall,
+              wall_pencil, wall_apart);
+  EXPECT_EQ(deep, 63u);
+  EXPECT_EQ(ev & (kFlagMixedAcross | kFlagBesideVoid | kFlagMixedRun | kFlagMixedAlong), kFlagMixedAcross | kFlagBesideVoid);
+  EXPECT_EQ(wall, 0u);
+  EXPECT_EQ(deep_pencil, 0u);  // no footprint: a surface receding into a void, judged at its end only
+  EXPECT_EQ(deep_apart, 0u);   // lines apart: no footprint spans the ramp
+  EXPECT_EQ(wall_pencil + wall_apart, 0u);
+  // A streamed window of the stage's reach on each side labels each line as the whole pass does.
+  EXPECT_EQ(labels_streamed_otherwise(make(0.001), batch, s), 0u);
 }
