@@ -721,7 +721,9 @@ int main(int argc, char** argv) {
     }
     std::fprintf(f, "], \"pooled\": ");
     json_row(f, all, "\"pooled\"");
-    std::fprintf(f, ", \"settings_meeting\": {\"recall\": %zu, \"valid_rejected\": %zu, \"no_phantom_cell\": %zu, \"all\": %zu, \"of\": %zu}}\n",
+    std::fprintf(f,
+                 ", \"settings_meeting\": {\"recall_at_least_0_90\": %zu, \"valid_rejected_at_most_1_pct\": %zu, "
+                 "\"no_phantom_cell\": %zu, \"all_three\": %zu, \"settings\": %zu}}\n",
                  met_recall, met_valid, met_phantom, met_all, results.size());
     std::fclose(f);
   }

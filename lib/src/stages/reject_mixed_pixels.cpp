@@ -228,9 +228,10 @@ bool inside_footprint(const ReturnsView& v, const std::vector<std::size_t>& seq,
 
 /// Beside a void past the footprint (across lines, the first round): whether return `pos`, its
 /// sides read past its footprint (far_l, far_r; skipped_l, skipped_r positions read past), has
-/// one side that is a surface and the other a void (its first position past the returns read
-/// past is in the sequence: not the end of the sweep), and breaks from that surface's trend as a
-/// mixture with the void does (breaks_from_side). Where the nod slows to its turns a footprint
+/// one side that is a surface within the span of 6 steps past the returns read past, and the
+/// other a void (its first position past the returns read past was read and holds no usable
+/// return: not the end of the sweep, nor beyond the search), and breaks from that surface's
+/// trend as a mixture with the void does (breaks_from_side). Where the nod slows to its turns a footprint
 /// spans many lines, and a ramp of mixtures between a surface and a background too weak to
 /// return (a wall's top against a far, dark ground) is as deep: the returns next to the void are
 /// judged beside it and the later rounds peel two more, but the ones deeper in have mixtures on
@@ -240,10 +241,14 @@ bool beside_void_past_footprint(const ReturnsView& v, const std::vector<std::siz
                                 int skipped_l, const Nb& far_r, int skipped_r, double tol, const MixedPixelParams& p) {
   if ((far_l.count == 0) == (far_r.count == 0)) return false;
   const bool void_right = far_l.count > 0;
+  const Nb& surface = void_right ? far_l : far_r;
   const int void_skipped = void_right ? skipped_r : skipped_l;
+  if (surface.at[0] - (void_right ? skipped_l : skipped_r) > p.max_span) return false;
+  // The search reads at most kFootprintReach + window positions (neighbours()).
+  if (void_skipped == 0 || void_skipped >= kFootprintReach + p.window) return false;
   const long first_past = static_cast<long>(pos) + (void_right ? 1 : -1) * (void_skipped + 1);
-  return void_skipped > 0 && first_past >= 0 && first_past < static_cast<long>(seq.size()) &&
-         breaks_from_side(v, seq[pos], void_right ? far_l : far_r, void_right ? far_r : far_l, tol, p);
+  return first_past >= 0 && first_past < static_cast<long>(seq.size()) &&
+         breaks_from_side(v, seq[pos], surface, void_right ? far_r : far_l, tol, p);
 }
 
 /// Tests 1-4 (docs/mixed_pixels.md) at return i between sides l and r: the kind of edge found

@@ -25,7 +25,7 @@ const Options<MixedPixelParams>& reject_mixed_pixels_options() {
       .add("one_sided", &P::one_sided, "beside a void, flag returns that break from the trend of their one visible surface by more than the tolerance")
       .add("spikes", &P::spikes, "flag a run of one to three returns in front of the surface on both sides along its line whose range changes across lines (a mixture with a thin object)")
       .retire("window", "the search is fixed at 8 returns on each side (enough to reach a side's three nearest usable "
-                        "returns past dropouts" + kTail)
+                        "returns past dropouts; past a footprint, 8 past the returns read past" + kTail)
       .retire("spike_width", "the widest spike is fixed at 3 returns along a line (a thin object one or two returns "
                              "wide and the mixtures on its sides" + kTail)
       .retire("edge_factor", kFixed + "1.5" + kWhy)

@@ -72,7 +72,7 @@ std::vector<bool> flagged_at_beam_10(Pass p, const MixedPixelParams& mp) {
 }
 /// How many returns of `raw` the pipeline stage labels otherwise than `batch` (the whole pass
 /// through reject_mixed_pixels) when each line is labelled in a window of the stage's reach on
-/// each side, as `LineStream` does. The reach must exceed 8 lines (the window alone).
+/// each side, as `LineStream` does.
 std::size_t labels_streamed_otherwise(const Pass& raw, const Pass& batch, const SensorParams& s) {
   PipelineConfig cfg;
   cfg.sensor = s;
@@ -80,7 +80,9 @@ std::size_t labels_streamed_otherwise(const Pass& raw, const Pass& batch, const 
   ctx.config = &cfg;
   const auto stage = reject_mixed_pixels_stage_info().create(StageConfig{"reject_mixed_pixels", "reject_mixed_pixels", "test", {}}, ctx);
   const std::size_t reach = static_cast<std::size_t>(stage->reach());
-  EXPECT_GT(reach, 8u);
+  // The window of 8 past up to 16 returns read past a footprint, one line for a nod reversal, two
+  // rounds of 3 (docs/mixed_pixels.md, "Streaming").
+  EXPECT_EQ(reach, 31u);
   std::size_t differ = 0;
   for (std::size_t k = 0; k < raw.line_count(); ++k) {
     const std::size_t from = k >= reach ? k - reach : 0, to = std::min(raw.line_count(), k + reach + 1);
@@ -634,7 +636,7 @@ TEST(RejectMixedPixels, RoundsPeelRunsAcrossLinesOnlyWhereTheFootprintsOverlap) 
   // returns between them across lines. The footprint (15 mrad) is wider than the bearing step
   // (10 mrad), so the stage runs a later round. Where the lines are 0.5 mrad apart the footprint
   // spans thirty of them and the ramp is a run of mixtures; the surfaces a full divergence away
-  // lie farther than the first round reads past a footprint (kFootprintReach lines), so it cannot
+  // lie farther than the first round's search past a footprint reaches (24 lines), so it cannot
   // judge the inner returns past the footprint and the later rounds peel the run. Where the lines are 20 mrad apart the footprints of two
   // lines do not overlap: no run spans them, and the later round does not test the other line's
   // return again (the first round's verdict stands, as with a pencil beam). Each flagged return
@@ -642,11 +644,12 @@ TEST(RejectMixedPixels, RoundsPeelRunsAcrossLinesOnlyWhereTheFootprintsOverlap) 
   const auto ramp_pass = [](double line_step) {
     std::vector<std::vector<float>> rows;
     std::vector<float> nods;
-    for (int k = 0; k < 30; ++k) {
-      // The ramp, lines 12-14: a quarter, a half and three quarters of the footprint on the far
+    for (int k = 0; k < 80; ++k) {
+      // The ramp, lines 40-42: a quarter, a half and three quarters of the footprint on the far
       // surface, which returns a quarter of the near one's power (1 / r^2): the mixing model's
-      // ranges r = w 5 + (1 - w) 10 with w = f / (f + (1 - f) / 4).
-      const int into = k - 12;
+      // ranges r = w 5 + (1 - w) 10 with w = f / (f + (1 - f) / 4). Each surface spans 40 lines
+      // on its side, 20 mrad at 0.5 mrad a line: past the footprint, out of the search's reach.
+      const int into = k - 40;
       const float ramp[3] = {5.38f, 6.0f, 7.14f};
       const float r = into < 0 ? 5.0f : into >= 3 ? 10.0f : ramp[into];
       rows.emplace_back(21, r);
@@ -847,9 +850,10 @@ TEST(RejectMixedPixels, ARampIntoAVoidIsJudgedBesideTheVoidPastItsFootprint) {
   };
   SensorParams s = coaxial_sensor();
   s.beam_divergence = 0.015;
-  // The deep mixtures (lines 38-40, 8.68-9.38 m: more than three lines from the void) flagged,
-  // with their evidence, and the wall's returns flagged. The returns before them (8.25-8.49 m)
-  // continue the ramp's own smooth trend and are settled as a surface (docs/mixed_pixels.md).
+  // The deep mixtures (lines 38-40, 8.68-9.38 m, which the return next to the void and the two
+  // later rounds do not reach) flagged, with their evidence, and the wall's returns flagged. The
+  // returns before them (8.25-8.49 m) continue the ramp's own smooth trend and are settled as a
+  // surface (docs/mixed_pixels.md).
   const auto count = [&](const Pass& p, std::size_t* wall_flagged, std::uint8_t* evidence) {
     std::size_t deep = 0;
     *wall_flagged = 0;
@@ -882,6 +886,17 @@ TEST(RejectMixedPixels, ARampIntoAVoidIsJudgedBesideTheVoidPastItsFootprint) {
   EXPECT_EQ(deep_pencil, 0u);  // no footprint: a surface receding into a void, judged at its end only
   EXPECT_EQ(deep_apart, 0u);   // lines apart: no footprint spans the ramp
   EXPECT_EQ(wall_pencil + wall_apart, 0u);
+  // The end of the sweep is not a void: the same pass cut after the ramp's last line.
+  Pass cut = lines_of(make(0.001), 0, 45);
+  reject_mixed_pixels(cut, MixedPixelParams{}, s);
+  std::size_t wall_cut = 0, wall_deep = 0;
+  EXPECT_EQ(count(cut, &wall_cut, &ignored), 0u);
+  // A footprint deeper than the search reaches (0.5 mrad a line: the wall 30 lines past the
+  // deep mixtures' beams): only the rounds judge the ramp.
+  Pass deep_footprint = make(0.0005);
+  reject_mixed_pixels(deep_footprint, MixedPixelParams{}, s);
+  EXPECT_EQ(count(deep_footprint, &wall_deep, &ignored), 0u);
+  EXPECT_EQ(wall_cut + wall_deep, 0u);
   // A streamed window of the stage's reach on each side labels each line as the whole pass does.
   EXPECT_EQ(labels_streamed_otherwise(make(0.001), batch, s), 0u);
 }

@@ -39,7 +39,11 @@
 // A neighbour that keeps the return's range is no witness of a surface where its beam lies inside
 // the return's footprint (within half of sensor.beam_divergence, in bearing along a line, in nod
 // across lines): two mixtures of one edge keep each other's range. Tests 1-4 read a side past such
-// neighbours (in the first round; ReturnsView::along_angle, across_angle, divergence).
+// neighbours (in the first round; ReturnsView::along_angle, across_angle, divergence); where no
+// strong edge is found, again from the first return a full divergence away (past every footprint
+// that overlaps this one; its window starts there, up to 16 positions out), and across lines a
+// return whose side read so is a surface and whose other side is a void is judged by the
+// one-sided test against that surface (a ramp of mixtures into a void near a nod's turn).
 // Spikes (`spikes`, organized passes with across_lines): a run of 1 to spike_width returns, each
 // nearer by more than an edge jump than both returns flanking the run along the line, which agree
 // with each other (one surface behind it), is a thin object or a mixture of one with the surface
@@ -86,7 +90,8 @@ struct MixedPixelParams {
   bool spikes = true;                ///< spikes in front of a surface, off their neighbours across lines
   // Library only.
   /// Returns searched on each side for a side's three nearest usable returns (past dropouts and
-  /// rejected returns). 4 and 16 gave the sweep's numbers within 0.001 of recall (docs/mixed_pixels.md).
+  /// rejected returns); a side read past the footprint searches this many past the returns read
+  /// past (up to 16). 4 and 16 gave the sweep's recall within 0.002 (docs/mixed_pixels.md).
   int window = 8;
   /// Returns: the widest run along a line taken for a spike (a thin object one or two returns wide
   /// and the mixtures on its sides).
