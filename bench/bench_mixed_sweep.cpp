@@ -33,7 +33,8 @@
 // surface minus the highest true top there, a phantom obstacle when > 0.3 m; below = lowest true
 // top minus surface (a top not seen, e.g. only the ground under a table). The same grid is also
 // made after check_consistency over the setting's passes (the main pipeline's next stage, as in
-// pipelines/nodding_terrain.yaml): column "+cc", its phantom cells.
+// pipelines/nodding_terrain.yaml): column "+cc", its phantom cells; below the pooled row, the
+// mixed pixels and valid returns check_consistency removes after the filters (the column's price).
 //
 // Usage: pcdp_mixed_sweep [--set tuning|heldout] [--index N]... [--json FILE] [--misses K] [--rank recall|f1|valid]
 //                         [--require-recall R] [--require-valid-rejected PCT] [--require-occlusion-recall R]
@@ -267,6 +268,9 @@ struct Result {
   std::uint64_t returns = 0, mixed = 0, mixed_rejected = 0, mixed_reaching = 0, valid = 0, valid_rejected = 0;
   std::uint64_t valid_rejected_mixed = 0, occlusion = 0, occlusion_rejected = 0, low_amplitude = 0, low_rejected = 0;
   std::uint64_t cells = 0, phantom_cells = 0, phantom_cells_cc = 0;  ///< cc: after check_consistency too
+  /// The kept returns check_consistency labels inconsistent after the filters, by truth: mixed
+  /// pixels, valid returns (the price of the "+cc" column).
+  std::uint64_t cc_mixed = 0, cc_valid = 0;
   std::map<std::string, std::uint64_t> phantom_points;  ///< kept points > 0.3 m above their cell's true top, by truth label
   double elev_above = 0, elev_below = 0, seconds = 0;
   std::vector<Miss> misses;
@@ -442,8 +446,14 @@ Result run_setting(const SweepSetting& st) {
     for (const Pass& p : filtered) ev.add_pass(p);
     ev.finalize();
     ElevationGrid grid_cc = make_elevation_grid(fep);
-    for (Pass& p : filtered) {
+    for (std::size_t k = 0; k < filtered.size(); ++k) {
+      Pass& p = filtered[k];
       ev.label(p);
+      for (std::size_t i = 0; i < p.size(); ++i) {
+        if (p.label[i] != Label::kInconsistent) continue;
+        res.cc_mixed += r.passes[k].truth[i] == Label::kMixedPixel;
+        res.cc_valid += r.passes[k].truth[i] == Label::kKept;
+      }
       fuse_pass(grid_cc, p, fep, st.sensor.range_sigma * st.sensor.range_sigma);
     }
     grid_cc.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& cell) {
@@ -486,6 +496,8 @@ Result pool(const std::vector<Result>& rs) {
     p.cells += r.cells;
     p.phantom_cells += r.phantom_cells;
     p.phantom_cells_cc += r.phantom_cells_cc;
+    p.cc_mixed += r.cc_mixed;
+    p.cc_valid += r.cc_valid;
     p.elev_above = std::max(p.elev_above, r.elev_above);
     p.elev_below = std::max(p.elev_below, r.elev_below);
     p.seconds += r.seconds;
@@ -587,14 +599,16 @@ void json_row(FILE* f, const Result& r, const char* name) {
                "\"valid_rejected_as_mixed\": %llu, \"f1\": %.4f, \"occlusion\": %llu, \"occlusion_recall\": %.4f, "
                "\"low_amplitude\": %llu, \"low_amplitude_rejected\": %llu, \"elevation_cells\": %llu, "
                "\"elevation_max_above_m\": %.3f, \"elevation_max_below_m\": %.3f, \"phantom_cells\": %llu, "
-               "\"phantom_cells_with_check_consistency\": %llu, \"seconds\": %.2f}",
+               "\"phantom_cells_with_check_consistency\": %llu, \"check_consistency_mixed\": %llu, "
+               "\"check_consistency_valid\": %llu, \"seconds\": %.2f}",
                name, r.sensor.c_str(), static_cast<unsigned long long>(r.returns), static_cast<unsigned long long>(r.mixed),
                r.recall(), static_cast<unsigned long long>(r.mixed_reaching), static_cast<unsigned long long>(r.valid),
                static_cast<unsigned long long>(r.valid_rejected), 100 * r.valid_rate(),
                static_cast<unsigned long long>(r.valid_rejected_mixed), r.f1(), static_cast<unsigned long long>(r.occlusion),
                r.occ_recall(), static_cast<unsigned long long>(r.low_amplitude), static_cast<unsigned long long>(r.low_rejected),
                static_cast<unsigned long long>(r.cells), r.elev_above, r.elev_below,
-               static_cast<unsigned long long>(r.phantom_cells), static_cast<unsigned long long>(r.phantom_cells_cc), r.seconds);
+               static_cast<unsigned long long>(r.phantom_cells), static_cast<unsigned long long>(r.phantom_cells_cc),
+               static_cast<unsigned long long>(r.cc_mixed), static_cast<unsigned long long>(r.cc_valid), r.seconds);
 }
 }  // namespace
 
@@ -688,6 +702,10 @@ int main(int argc, char** argv) {
   std::printf("valid returns rejected as mixed pixels: %llu of %llu rejected; low-amplitude false ranges rejected: %llu of %llu\n",
               static_cast<unsigned long long>(all.valid_rejected_mixed), static_cast<unsigned long long>(all.valid_rejected),
               static_cast<unsigned long long>(all.low_rejected), static_cast<unsigned long long>(all.low_amplitude));
+  std::printf("check_consistency after the filters (column +cc): %llu more mixed pixels and %llu more valid returns (%.3f %% of "
+              "the valid) removed\n",
+              static_cast<unsigned long long>(all.cc_mixed), static_cast<unsigned long long>(all.cc_valid),
+              all.valid ? 100.0 * static_cast<double>(all.cc_valid) / static_cast<double>(all.valid) : 0.0);
   std::printf("kept points more than 0.3 m above their cell's true top, by truth label:");
   for (const auto& [k, n] : all.phantom_points) std::printf(" %s %llu;", k.c_str(), static_cast<unsigned long long>(n));
   std::printf("\n");

@@ -1,6 +1,7 @@
 # ctest -R MixedSweep.CountsTheSettingsMeetingEachBar: runs pcdp_mixed_sweep on a few settings
 # with --json and checks that its per-bar counts ("settings_meeting") are those of its own rows:
-# recall >= 0.90, valid rejected <= 1 %, no phantom cell, and all three.
+# recall >= 0.90, valid rejected <= 1 %, no phantom cell, and all three; and that its counts of
+# what check_consistency removes after the filters add up.
 # Usage: cmake -DSWEEP=<pcdp_mixed_sweep> -DOUT=<json file> -P check_settings_meeting.cmake
 execute_process(COMMAND "${SWEEP}" --index 0 --index 3 --index 19 --misses 0 --json "${OUT}"
                 RESULT_VARIABLE rc OUTPUT_VARIABLE out)
@@ -72,4 +73,31 @@ foreach(count ${recall} ${valid} ${phantom} ${all})
     message(FATAL_ERROR "the chosen settings no longer mix met and missed bars (${want}): choose others")
   endif()
 endforeach()
-message(STATUS "settings meeting each bar: ${got}")
+# What check_consistency removes after the filters ("check_consistency_valid", "_mixed"): each
+# row's valid returns removed are among those the filters kept, the pooled row sums the rows, the
+# printed line says the pooled numbers, and the chosen settings have some (or the check is empty).
+set(cc_valid 0)
+set(cc_mixed 0)
+foreach(k RANGE ${last})
+  string(JSON cv GET "${json}" settings ${k} check_consistency_valid)
+  string(JSON cm GET "${json}" settings ${k} check_consistency_mixed)
+  string(JSON v GET "${json}" settings ${k} valid)
+  string(JSON vr GET "${json}" settings ${k} valid_rejected)
+  string(JSON m GET "${json}" settings ${k} mixed)
+  math(EXPR kept_valid "${v} - ${vr}")
+  if(cv GREATER kept_valid OR cm GREATER m)
+    message(FATAL_ERROR "row ${k}: check_consistency removes ${cv} valid of ${kept_valid} kept, ${cm} mixed of ${m}")
+  endif()
+  math(EXPR cc_valid "${cc_valid} + ${cv}")
+  math(EXPR cc_mixed "${cc_mixed} + ${cm}")
+endforeach()
+string(JSON pooled_cv GET "${json}" pooled check_consistency_valid)
+string(JSON pooled_cm GET "${json}" pooled check_consistency_mixed)
+if(NOT "${pooled_cv} ${pooled_cm}" STREQUAL "${cc_valid} ${cc_mixed}" OR cc_valid EQUAL 0 OR cc_mixed EQUAL 0)
+  message(FATAL_ERROR "check_consistency: pooled ${pooled_cv} valid, ${pooled_cm} mixed; rows sum to ${cc_valid}, ${cc_mixed}")
+endif()
+string(FIND "${out}" "(column +cc): ${cc_mixed} more mixed pixels and ${cc_valid} more valid returns" at)
+if(at LESS 0)
+  message(FATAL_ERROR "the printed line does not say ${cc_mixed} mixed pixels and ${cc_valid} valid returns:\n${out}")
+endif()
+message(STATUS "settings meeting each bar: ${got}; check_consistency removes ${cc_mixed} mixed, ${cc_valid} valid")
