@@ -48,7 +48,9 @@
 // (V valid, M mixed, O occlusion, L low amplitude, N none), label initial and amplitude of its
 // in-line neighbours (4 each side) and across lines (2 each side, with their nod angles).
 // Below the pooled row, how many settings meet each per-setting bar (recall >= 0.90, valid
-// rejected <= 1 %, no phantom cell) and all three.
+// rejected <= 1 %, no phantom cell) and all three, and the kept points standing more than 0.3 m
+// above their cell's true top: by truth label, and the mixed pixels among them by what surrounds
+// them (phantom_kind()).
 // The --require options check the pooled numbers (exit 1 naming each one missed): CI runs both sets
 // with a margin below today's numbers (bench/CMakeLists.txt), so a regression fails the build.
 #include <algorithm>
@@ -272,6 +274,8 @@ struct Result {
   /// pixels, valid returns (the price of the "+cc" column).
   std::uint64_t cc_mixed = 0, cc_valid = 0;
   std::map<std::string, std::uint64_t> phantom_points;  ///< kept points > 0.3 m above their cell's true top, by truth label
+  /// The mixed pixels among them, by what surrounds them (phantom_kind()).
+  std::map<std::string, std::uint64_t> phantom_mixed;
   double elev_above = 0, elev_below = 0, seconds = 0;
   std::vector<Miss> misses;
   std::map<std::string, std::uint64_t> false_alarms;  ///< valid returns labelled mixed_pixel, by what the footprint lit
@@ -324,6 +328,24 @@ std::pair<double, double> cell_top(const sim::Scene& sc, double rs, std::int64_t
   return {tmin, tmax};
 }
 
+/// What surrounds a kept mixed pixel that stands more than 0.3 m above its cell's true top: along
+/// its line, whether both neighbouring beams hold no kept return (one beam wide between voids: a
+/// thin object, or an edge whose far surface is too dark to return); across lines, whether the
+/// neighbouring lines' footprints overlap its own (the nod moved the beam by less than the
+/// divergence, as near its turns); and whether the near surface holds 90 % or more of the power
+/// (a mixture dominated by it, far behind it only by the far surface's small share).
+std::string phantom_kind(const Pass& p, const sim::SimPass& sp, const SweepSetting& st, std::size_t i, std::size_t nb) {
+  const std::size_t b = i % nb;
+  const bool void_l = b == 0 || !p.is_kept(i - 1), void_r = b + 1 == nb || !p.is_kept(i + 1);
+  double step = INFINITY;
+  if (i >= nb) step = std::min(step, std::fabs(static_cast<double>(p.nod[i]) - p.nod[i - nb]));
+  if (i + nb < p.size()) step = std::min(step, std::fabs(static_cast<double>(p.nod[i + nb]) - p.nod[i]));
+  std::string k = void_l && void_r ? "between voids along its line" : void_l || void_r ? "beside a void along its line" : "neighbours along its line";
+  k += step < st.sensor.beam_divergence ? ", footprints overlap across lines" : ", lines apart";
+  if (sp.footprint[i].near_power_share >= 0.9) k += ", near share >= 0.9";
+  return k;
+}
+
 bool is_filter_label(Label l) { return l == Label::kOcclusion || l == Label::kMixedPixel || l == Label::kOutlier || l == Label::kLowAmplitude || l == Label::kInconsistent; }
 
 Result run_setting(const SweepSetting& st) {
@@ -354,12 +376,14 @@ Result run_setting(const SweepSetting& st) {
     reject_mixed_pixels(p, sweep_params(st.sensor), st.sensor, PoseSigma{});
     fuse_pass(grid, p, fep, st.sensor.range_sigma * st.sensor.range_sigma);
     filtered.push_back(p);
+    const std::size_t nb = static_cast<std::size_t>(c.scanner.beams);
     for (std::size_t i = 0; i < p.size(); ++i) {
       if (!p.is_kept(i) || !(p.z[i] > c.scene.top_height(p.x[i], p.y[i]) + 0.3)) continue;
-      if (p.z[i] > cell_top(c.scene, grid.resolution(), grid.cell_index(p.x[i]), grid.cell_index(p.y[i])).second + 0.3)
+      if (p.z[i] > cell_top(c.scene, grid.resolution(), grid.cell_index(p.x[i]), grid.cell_index(p.y[i])).second + 0.3) {
         ++res.phantom_points[label_name(sp.truth[i])];
+        if (sp.truth[i] == Label::kMixedPixel) ++res.phantom_mixed[phantom_kind(p, sp, st, i, nb)];
+      }
     }
-    const std::size_t nb = static_cast<std::size_t>(c.scanner.beams);
     // One return with its neighbours along its line and across lines: range, truth, label, amplitude.
     const auto dump = [&](const char* what, std::size_t i) {
       const sim::BeamFootprint& f = sp.footprint[i];
@@ -503,6 +527,7 @@ Result pool(const std::vector<Result>& rs) {
     p.seconds += r.seconds;
     p.misses.insert(p.misses.end(), r.misses.begin(), r.misses.end());
     for (const auto& [k, n] : r.phantom_points) p.phantom_points[k] += n;
+    for (const auto& [k, n] : r.phantom_mixed) p.phantom_mixed[k] += n;
     for (const auto& [k, n] : r.false_alarms) p.false_alarms[k] += n;
     for (const auto& [k, n] : r.evidence) {
       p.evidence[k][0] += n[0];
@@ -709,6 +734,13 @@ int main(int argc, char** argv) {
   std::printf("kept points more than 0.3 m above their cell's true top, by truth label:");
   for (const auto& [k, n] : all.phantom_points) std::printf(" %s %llu;", k.c_str(), static_cast<unsigned long long>(n));
   std::printf("\n");
+  if (!all.phantom_mixed.empty()) {
+    std::vector<std::pair<std::uint64_t, std::string>> pm;
+    for (const auto& [k, n] : all.phantom_mixed) pm.emplace_back(n, k);
+    std::sort(pm.rbegin(), pm.rend());
+    std::printf("  the mixed pixels among them, by what surrounds them:\n");
+    for (const auto& [n, k] : pm) std::printf("    %-90s %6llu\n", k.c_str(), static_cast<unsigned long long>(n));
+  }
   std::vector<const Result*> order;
   for (const auto& r : results) order.push_back(&r);
   std::sort(order.begin(), order.end(), [&](const Result* a, const Result* b) {

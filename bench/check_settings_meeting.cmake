@@ -1,7 +1,8 @@
 # ctest -R MixedSweep.CountsTheSettingsMeetingEachBar: runs pcdp_mixed_sweep on a few settings
 # with --json and checks that its per-bar counts ("settings_meeting") are those of its own rows:
 # recall >= 0.90, valid rejected <= 1 %, no phantom cell, and all three; and that its counts of
-# what check_consistency removes after the filters add up.
+# what check_consistency removes after the filters, and of the kept mixed pixels standing more
+# than 0.3 m above the true top by what surrounds them, add up.
 # Usage: cmake -DSWEEP=<pcdp_mixed_sweep> -DOUT=<json file> -P check_settings_meeting.cmake
 execute_process(COMMAND "${SWEEP}" --index 0 --index 3 --index 19 --misses 0 --json "${OUT}"
                 RESULT_VARIABLE rc OUTPUT_VARIABLE out)
@@ -99,5 +100,21 @@ endif()
 string(FIND "${out}" "(column +cc): ${cc_mixed} more mixed pixels and ${cc_valid} more valid returns" at)
 if(at LESS 0)
   message(FATAL_ERROR "the printed line does not say ${cc_mixed} mixed pixels and ${cc_valid} valid returns:\n${out}")
+endif()
+# The kept mixed pixels standing more than 0.3 m above the true top, sorted by what surrounds
+# them: the rows add up to the count by truth label, and there are some.
+if(NOT out MATCHES "by truth label:[^\n]* mixed_pixel ([0-9]+);")
+  message(FATAL_ERROR "no kept mixed pixel more than 0.3 m above the true top on these settings:\n${out}")
+endif()
+set(phantom_mixed ${CMAKE_MATCH_1})
+string(REGEX MATCH "by what surrounds them:\n(    [^\n]*\n)+" kinds "${out}")
+string(REGEX MATCHALL "    [a-z][^\n]* ([0-9]+)\n" rows "${kinds}")
+set(sum 0)
+foreach(row ${rows})
+  string(REGEX MATCH "([0-9]+)\n$" _ "${row}")
+  math(EXPR sum "${sum} + ${CMAKE_MATCH_1}")
+endforeach()
+if(NOT sum EQUAL phantom_mixed)
+  message(FATAL_ERROR "the rows by what surrounds them add up to ${sum}, not ${phantom_mixed}:\n${kinds}")
 endif()
 message(STATUS "settings meeting each bar: ${got}; check_consistency removes ${cc_mixed} mixed, ${cc_valid} valid")
