@@ -34,7 +34,8 @@
 // top minus surface (a top not seen, e.g. only the ground under a table). The same grid is also
 // made after check_consistency over the setting's passes (the main pipeline's next stage, as in
 // pipelines/nodding_terrain.yaml): column "+cc", its phantom cells; below the pooled row, the
-// mixed pixels and valid returns check_consistency removes after the filters (the column's price).
+// mixed pixels, valid returns and false ranges check_consistency removes after the filters (the
+// column's price).
 //
 // Usage: pcdp_mixed_sweep [--set tuning|heldout] [--index N]... [--json FILE] [--misses K] [--rank recall|f1|valid]
 //                         [--require-recall R] [--require-valid-rejected PCT] [--require-occlusion-recall R]
@@ -272,7 +273,7 @@ struct Result {
   std::uint64_t cells = 0, phantom_cells = 0, phantom_cells_cc = 0;  ///< cc: after check_consistency too
   /// The kept returns check_consistency labels inconsistent after the filters, by truth: mixed
   /// pixels, valid returns (the price of the "+cc" column).
-  std::uint64_t cc_mixed = 0, cc_valid = 0;
+  std::uint64_t cc_mixed = 0, cc_valid = 0, cc_false_ranges = 0;  ///< false ranges: occlusion, low amplitude
   std::map<std::string, std::uint64_t> phantom_points;  ///< kept points > 0.3 m above their cell's true top, by truth label
   /// The mixed pixels among them, by what surrounds them (phantom_kind()).
   std::map<std::string, std::uint64_t> phantom_mixed;
@@ -290,6 +291,16 @@ struct Result {
   }
 };
 
+/// Whether the nod moved return i's beam by more than the divergence to both neighbouring lines
+/// (nb returns a line; one neighbour on the first and last line): their footprints then leave
+/// unsampled ground between them and this one's; otherwise they touch or overlap it.
+bool lines_apart(const Pass& p, std::size_t i, std::size_t nb, double divergence) {
+  double step = INFINITY;
+  if (i >= nb) step = std::min(step, std::fabs(static_cast<double>(p.nod[i]) - p.nod[i - nb]));
+  if (i + nb < p.size()) step = std::min(step, std::fabs(static_cast<double>(p.nod[i + nb]) - p.nod[i]));
+  return step > divergence;
+}
+
 /// The evidence behind return i's mixed_pixel label, from its flags (Pass::flags): the direction
 /// (along its line, across lines, both, or a spike alone), whether beside a void or in a later
 /// round; for evidence across lines alone, whether the neighbouring lines' footprints touch this
@@ -299,12 +310,7 @@ std::string evidence_of(const Pass& p, std::size_t i, std::size_t nb, double div
   const unsigned f = p.flags[i];
   const bool al = f & kFlagMixedAlong, ac = f & kFlagMixedAcross;
   std::string k = al && ac ? "along and across" : al ? "along" : ac ? "across" : "spike";
-  if (ac && !al) {
-    double step = INFINITY;
-    if (i >= nb) step = std::min(step, std::fabs(static_cast<double>(p.nod[i]) - p.nod[i - nb]));
-    if (i + nb < p.size()) step = std::min(step, std::fabs(static_cast<double>(p.nod[i + nb]) - p.nod[i]));
-    k += step > divergence ? ", lines apart" : ", footprints touch";
-  }
+  if (ac && !al) k += lines_apart(p, i, nb, divergence) ? ", lines apart" : ", footprints touch";
   if (f & kFlagBesideVoid) k += ", beside a void";
   if ((f & kFlagSpike) && (al || ac)) k += ", spike";
   if (f & kFlagMixedRun) k += ", later round";
@@ -329,19 +335,16 @@ std::pair<double, double> cell_top(const sim::Scene& sc, double rs, std::int64_t
 }
 
 /// What surrounds a kept mixed pixel that stands more than 0.3 m above its cell's true top: along
-/// its line, whether both neighbouring beams hold no kept return (one beam wide between voids: a
-/// thin object, or an edge whose far surface is too dark to return); across lines, whether the
-/// neighbouring lines' footprints overlap its own (the nod moved the beam by less than the
-/// divergence, as near its turns); and whether the near surface holds 90 % or more of the power
-/// (a mixture dominated by it, far behind it only by the far surface's small share).
-std::string phantom_kind(const Pass& p, const sim::SimPass& sp, const SweepSetting& st, std::size_t i, std::size_t nb) {
+/// its line, whether the neighbouring beams hold no kept return (a void, as the stage reads it:
+/// no return, or one a filter rejected; a line's end is not a void); across lines, whether the
+/// neighbouring lines' footprints touch or overlap its own (lines_apart()); and whether the near
+/// surface holds 90 % or more of the power (a mixture dominated by it, behind it only by the far
+/// surface's small share of the power, which a far gap makes large in range).
+std::string phantom_kind(const Pass& p, const sim::SimPass& sp, std::size_t i, std::size_t nb, double divergence) {
   const std::size_t b = i % nb;
-  const bool void_l = b == 0 || !p.is_kept(i - 1), void_r = b + 1 == nb || !p.is_kept(i + 1);
-  double step = INFINITY;
-  if (i >= nb) step = std::min(step, std::fabs(static_cast<double>(p.nod[i]) - p.nod[i - nb]));
-  if (i + nb < p.size()) step = std::min(step, std::fabs(static_cast<double>(p.nod[i + nb]) - p.nod[i]));
-  std::string k = void_l && void_r ? "between voids along its line" : void_l || void_r ? "beside a void along its line" : "neighbours along its line";
-  k += step < st.sensor.beam_divergence ? ", footprints overlap across lines" : ", lines apart";
+  const bool void_l = b > 0 && !p.is_kept(i - 1), void_r = b + 1 < nb && i + 1 < p.size() && !p.is_kept(i + 1);
+  std::string k = void_l && void_r ? "between voids along its line" : void_l || void_r ? "beside a void along its line" : "no void beside it along its line";
+  k += lines_apart(p, i, nb, divergence) ? ", lines apart" : ", footprints touch across lines";
   if (sp.footprint[i].near_power_share >= 0.9) k += ", near share >= 0.9";
   return k;
 }
@@ -381,7 +384,7 @@ Result run_setting(const SweepSetting& st) {
       if (!p.is_kept(i) || !(p.z[i] > c.scene.top_height(p.x[i], p.y[i]) + 0.3)) continue;
       if (p.z[i] > cell_top(c.scene, grid.resolution(), grid.cell_index(p.x[i]), grid.cell_index(p.y[i])).second + 0.3) {
         ++res.phantom_points[label_name(sp.truth[i])];
-        if (sp.truth[i] == Label::kMixedPixel) ++res.phantom_mixed[phantom_kind(p, sp, st, i, nb)];
+        if (sp.truth[i] == Label::kMixedPixel) ++res.phantom_mixed[phantom_kind(p, sp, i, nb, st.sensor.beam_divergence)];
       }
     }
     // One return with its neighbours along its line and across lines: range, truth, label, amplitude.
@@ -477,6 +480,7 @@ Result run_setting(const SweepSetting& st) {
         if (p.label[i] != Label::kInconsistent) continue;
         res.cc_mixed += r.passes[k].truth[i] == Label::kMixedPixel;
         res.cc_valid += r.passes[k].truth[i] == Label::kKept;
+        res.cc_false_ranges += r.passes[k].truth[i] == Label::kOcclusion || r.passes[k].truth[i] == Label::kLowAmplitude;
       }
       fuse_pass(grid_cc, p, fep, st.sensor.range_sigma * st.sensor.range_sigma);
     }
@@ -522,6 +526,7 @@ Result pool(const std::vector<Result>& rs) {
     p.phantom_cells_cc += r.phantom_cells_cc;
     p.cc_mixed += r.cc_mixed;
     p.cc_valid += r.cc_valid;
+    p.cc_false_ranges += r.cc_false_ranges;
     p.elev_above = std::max(p.elev_above, r.elev_above);
     p.elev_below = std::max(p.elev_below, r.elev_below);
     p.seconds += r.seconds;
@@ -619,7 +624,8 @@ void print_misses(const Result& r) {
 
 void json_row(FILE* f, const Result& r, const char* name) {
   std::fprintf(f,
-               "{\"setting\": %s, \"sensor\": \"%s\", \"returns\": %llu, \"mixed\": %llu, \"mixed_recall\": %.4f, "
+               "{\"setting\": %s, \"sensor\": \"%s\", \"returns\": %llu, \"mixed\": %llu, \"mixed_rejected\": %llu, "
+               "\"mixed_recall\": %.4f, "
                "\"mixed_reaching_filter\": %llu, \"valid\": %llu, \"valid_rejected\": %llu, \"valid_rejected_pct\": %.4f, "
                "\"valid_rejected_as_mixed\": %llu, \"f1\": %.4f, \"occlusion\": %llu, \"occlusion_recall\": %.4f, "
                "\"low_amplitude\": %llu, \"low_amplitude_rejected\": %llu, \"elevation_cells\": %llu, "
@@ -627,7 +633,7 @@ void json_row(FILE* f, const Result& r, const char* name) {
                "\"phantom_cells_with_check_consistency\": %llu, \"check_consistency_mixed\": %llu, "
                "\"check_consistency_valid\": %llu, \"seconds\": %.2f}",
                name, r.sensor.c_str(), static_cast<unsigned long long>(r.returns), static_cast<unsigned long long>(r.mixed),
-               r.recall(), static_cast<unsigned long long>(r.mixed_reaching), static_cast<unsigned long long>(r.valid),
+               static_cast<unsigned long long>(r.mixed_rejected), r.recall(), static_cast<unsigned long long>(r.mixed_reaching), static_cast<unsigned long long>(r.valid),
                static_cast<unsigned long long>(r.valid_rejected), 100 * r.valid_rate(),
                static_cast<unsigned long long>(r.valid_rejected_mixed), r.f1(), static_cast<unsigned long long>(r.occlusion),
                r.occ_recall(), static_cast<unsigned long long>(r.low_amplitude), static_cast<unsigned long long>(r.low_rejected),
@@ -727,10 +733,11 @@ int main(int argc, char** argv) {
   std::printf("valid returns rejected as mixed pixels: %llu of %llu rejected; low-amplitude false ranges rejected: %llu of %llu\n",
               static_cast<unsigned long long>(all.valid_rejected_mixed), static_cast<unsigned long long>(all.valid_rejected),
               static_cast<unsigned long long>(all.low_rejected), static_cast<unsigned long long>(all.low_amplitude));
-  std::printf("check_consistency after the filters (column +cc): %llu more mixed pixels and %llu more valid returns (%.3f %% of "
-              "the valid) removed\n",
+  std::printf("check_consistency after the filters (column +cc): %llu more mixed pixels, %llu more valid returns (%.3f %% of "
+              "the valid) and %llu more false ranges removed\n",
               static_cast<unsigned long long>(all.cc_mixed), static_cast<unsigned long long>(all.cc_valid),
-              all.valid ? 100.0 * static_cast<double>(all.cc_valid) / static_cast<double>(all.valid) : 0.0);
+              all.valid ? 100.0 * static_cast<double>(all.cc_valid) / static_cast<double>(all.valid) : 0.0,
+              static_cast<unsigned long long>(all.cc_false_ranges));
   std::printf("kept points more than 0.3 m above their cell's true top, by truth label:");
   for (const auto& [k, n] : all.phantom_points) std::printf(" %s %llu;", k.c_str(), static_cast<unsigned long long>(n));
   std::printf("\n");
