@@ -272,8 +272,8 @@ struct Result {
   std::uint64_t valid_rejected_mixed = 0, occlusion = 0, occlusion_rejected = 0, low_amplitude = 0, low_rejected = 0;
   std::uint64_t cells = 0, phantom_cells = 0, phantom_cells_cc = 0;  ///< cc: after check_consistency too
   /// The kept returns check_consistency labels inconsistent after the filters, by truth: mixed
-  /// pixels, valid returns (the price of the "+cc" column).
-  std::uint64_t cc_mixed = 0, cc_valid = 0, cc_false_ranges = 0;  ///< false ranges: occlusion, low amplitude
+  /// pixels, valid returns (the price of the "+cc" column), false ranges (occlusion, low amplitude).
+  std::uint64_t cc_mixed = 0, cc_valid = 0, cc_false_ranges = 0;
   std::map<std::string, std::uint64_t> phantom_points;  ///< kept points > 0.3 m above their cell's true top, by truth label
   /// The mixed pixels among them, by what surrounds them (phantom_kind()).
   std::map<std::string, std::uint64_t> phantom_mixed;
@@ -631,7 +631,7 @@ void json_row(FILE* f, const Result& r, const char* name) {
                "\"low_amplitude\": %llu, \"low_amplitude_rejected\": %llu, \"elevation_cells\": %llu, "
                "\"elevation_max_above_m\": %.3f, \"elevation_max_below_m\": %.3f, \"phantom_cells\": %llu, "
                "\"phantom_cells_with_check_consistency\": %llu, \"check_consistency_mixed\": %llu, "
-               "\"check_consistency_valid\": %llu, \"seconds\": %.2f}",
+               "\"check_consistency_valid\": %llu, \"check_consistency_false_ranges\": %llu, \"seconds\": %.2f}",
                name, r.sensor.c_str(), static_cast<unsigned long long>(r.returns), static_cast<unsigned long long>(r.mixed),
                static_cast<unsigned long long>(r.mixed_rejected), r.recall(), static_cast<unsigned long long>(r.mixed_reaching), static_cast<unsigned long long>(r.valid),
                static_cast<unsigned long long>(r.valid_rejected), 100 * r.valid_rate(),
@@ -639,7 +639,8 @@ void json_row(FILE* f, const Result& r, const char* name) {
                r.occ_recall(), static_cast<unsigned long long>(r.low_amplitude), static_cast<unsigned long long>(r.low_rejected),
                static_cast<unsigned long long>(r.cells), r.elev_above, r.elev_below,
                static_cast<unsigned long long>(r.phantom_cells), static_cast<unsigned long long>(r.phantom_cells_cc),
-               static_cast<unsigned long long>(r.cc_mixed), static_cast<unsigned long long>(r.cc_valid), r.seconds);
+               static_cast<unsigned long long>(r.cc_mixed), static_cast<unsigned long long>(r.cc_valid),
+               static_cast<unsigned long long>(r.cc_false_ranges), r.seconds);
 }
 }  // namespace
 
