@@ -478,9 +478,10 @@ Result run_setting(const SweepSetting& st) {
       ev.label(p);
       for (std::size_t i = 0; i < p.size(); ++i) {
         if (p.label[i] != Label::kInconsistent) continue;
-        res.cc_mixed += r.passes[k].truth[i] == Label::kMixedPixel;
-        res.cc_valid += r.passes[k].truth[i] == Label::kKept;
-        res.cc_false_ranges += r.passes[k].truth[i] == Label::kOcclusion || r.passes[k].truth[i] == Label::kLowAmplitude;
+        const Label t = r.passes[k].truth[i];
+        res.cc_mixed += t == Label::kMixedPixel;
+        res.cc_valid += t == Label::kKept;
+        res.cc_false_ranges += t == Label::kOcclusion || t == Label::kLowAmplitude;
       }
       fuse_pass(grid_cc, p, fep, st.sensor.range_sigma * st.sensor.range_sigma);
     }
