@@ -50,8 +50,9 @@
 // in-line neighbours (4 each side) and across lines (2 each side, with their nod angles).
 // Below the pooled row, how many settings meet each per-setting bar (recall >= 0.90, valid
 // rejected <= 1 %, no phantom cell) and all three, and the kept points standing more than 0.3 m
-// above their cell's true top: by truth label, and the mixed pixels among them by what surrounds
-// them (phantom_kind()).
+// above their cell's true top: by truth label, the mixed pixels among them by what surrounds
+// them (phantom_kind()), and how many of those lie on a line next to a nod turn against the share
+// of all mixed pixels on such lines (next_to_nod_turn()).
 // The --require options check the pooled numbers (exit 1 naming each one missed): CI runs both sets
 // with a margin below today's numbers (bench/CMakeLists.txt), so a regression fails the build.
 #include <algorithm>
@@ -277,6 +278,9 @@ struct Result {
   std::map<std::string, std::uint64_t> phantom_points;  ///< kept points > 0.3 m above their cell's true top, by truth label
   /// The mixed pixels among them, by what surrounds them (phantom_kind()).
   std::map<std::string, std::uint64_t> phantom_mixed;
+  std::uint64_t phantom_mixed_turn = 0;  ///< ... of which on a line next to a nod turn (next_to_nod_turn())
+  std::uint64_t phantom_mixed_turn_last = 0;  ///< ... on the last line before the nod reverses
+  std::uint64_t mixed_turn = 0;          ///< all mixed pixels on a line next to a nod turn, for comparison
   double elev_above = 0, elev_below = 0, seconds = 0;
   std::vector<Miss> misses;
   std::map<std::string, std::uint64_t> false_alarms;  ///< valid returns labelled mixed_pixel, by what the footprint lit
@@ -349,6 +353,20 @@ std::string phantom_kind(const Pass& p, const sim::SimPass& sp, std::size_t i, s
   return k;
 }
 
+/// Whether line k of an organized pass is the last line before the nod reverses or the first after
+/// it, by the stage's rule (three consecutive lines' nod angles, reject_mixed_pixels.cpp): there
+/// the sequence of lines across which the stage compares a beam ends, so the line has neighbours
+/// across lines on one side only.
+/// `last`: the last line before the reversal, the sweep's extreme, beyond which no line looked.
+bool next_to_nod_turn(const Pass& p, std::size_t k, bool* last = nullptr) {
+  const auto nod = [&](std::size_t q) { return static_cast<double>(p.nod[p.line_begin[q]]); };
+  const auto reverses_at = [&](std::size_t q) {
+    return q >= 2 && q < p.line_count() && (nod(q) - nod(q - 1)) * (nod(q - 1) - nod(q - 2)) < 0;
+  };
+  if (last) *last = reverses_at(k + 1);
+  return reverses_at(k) || reverses_at(k + 1);
+}
+
 bool is_filter_label(Label l) { return l == Label::kOcclusion || l == Label::kMixedPixel || l == Label::kOutlier || l == Label::kLowAmplitude || l == Label::kInconsistent; }
 
 Result run_setting(const SweepSetting& st) {
@@ -384,7 +402,12 @@ Result run_setting(const SweepSetting& st) {
       if (!p.is_kept(i) || !(p.z[i] > c.scene.top_height(p.x[i], p.y[i]) + 0.3)) continue;
       if (p.z[i] > cell_top(c.scene, grid.resolution(), grid.cell_index(p.x[i]), grid.cell_index(p.y[i])).second + 0.3) {
         ++res.phantom_points[label_name(sp.truth[i])];
-        if (sp.truth[i] == Label::kMixedPixel) ++res.phantom_mixed[phantom_kind(p, sp, i, nb, st.sensor.beam_divergence)];
+        if (sp.truth[i] == Label::kMixedPixel) {
+          ++res.phantom_mixed[phantom_kind(p, sp, i, nb, st.sensor.beam_divergence)];
+          bool last = false;
+          res.phantom_mixed_turn += next_to_nod_turn(p, i / nb, &last);
+          res.phantom_mixed_turn_last += last;
+        }
       }
     }
     // One return with its neighbours along its line and across lines: range, truth, label, amplitude.
@@ -426,6 +449,7 @@ Result run_setting(const SweepSetting& st) {
       const Label t = sp.truth[i], l = p.label[i];
       if (t == Label::kMixedPixel) {
         ++res.mixed;
+        res.mixed_turn += next_to_nod_turn(p, i / nb);
         res.mixed_reaching += reaching[i];
         if (l != Label::kKept) {
           ++res.mixed_rejected;
@@ -534,6 +558,9 @@ Result pool(const std::vector<Result>& rs) {
     p.misses.insert(p.misses.end(), r.misses.begin(), r.misses.end());
     for (const auto& [k, n] : r.phantom_points) p.phantom_points[k] += n;
     for (const auto& [k, n] : r.phantom_mixed) p.phantom_mixed[k] += n;
+    p.phantom_mixed_turn += r.phantom_mixed_turn;
+    p.phantom_mixed_turn_last += r.phantom_mixed_turn_last;
+    p.mixed_turn += r.mixed_turn;
     for (const auto& [k, n] : r.false_alarms) p.false_alarms[k] += n;
     for (const auto& [k, n] : r.evidence) {
       p.evidence[k][0] += n[0];
@@ -623,6 +650,12 @@ void print_misses(const Result& r) {
               h[0], h[1], h[2], h[3], h[4]);
 }
 
+/// The kept mixed pixels standing more than 0.3 m above their cell's true top.
+std::uint64_t phantom_mixed_pixels(const Result& r) {
+  const auto it = r.phantom_points.find(label_name(Label::kMixedPixel));
+  return it == r.phantom_points.end() ? 0 : it->second;
+}
+
 void json_row(FILE* f, const Result& r, const char* name) {
   std::fprintf(f,
                "{\"setting\": %s, \"sensor\": \"%s\", \"returns\": %llu, \"mixed\": %llu, \"mixed_rejected\": %llu, "
@@ -632,7 +665,9 @@ void json_row(FILE* f, const Result& r, const char* name) {
                "\"low_amplitude\": %llu, \"low_amplitude_rejected\": %llu, \"elevation_cells\": %llu, "
                "\"elevation_max_above_m\": %.3f, \"elevation_max_below_m\": %.3f, \"phantom_cells\": %llu, "
                "\"phantom_cells_with_check_consistency\": %llu, \"check_consistency_mixed\": %llu, "
-               "\"check_consistency_valid\": %llu, \"check_consistency_false_ranges\": %llu, \"seconds\": %.2f}",
+               "\"check_consistency_valid\": %llu, \"check_consistency_false_ranges\": %llu, "
+               "\"phantom_mixed_pixels\": %llu, \"phantom_mixed_pixels_next_to_nod_turn\": %llu, "
+               "\"mixed_next_to_nod_turn\": %llu, \"seconds\": %.2f}",
                name, r.sensor.c_str(), static_cast<unsigned long long>(r.returns), static_cast<unsigned long long>(r.mixed),
                static_cast<unsigned long long>(r.mixed_rejected), r.recall(), static_cast<unsigned long long>(r.mixed_reaching), static_cast<unsigned long long>(r.valid),
                static_cast<unsigned long long>(r.valid_rejected), 100 * r.valid_rate(),
@@ -641,7 +676,8 @@ void json_row(FILE* f, const Result& r, const char* name) {
                static_cast<unsigned long long>(r.cells), r.elev_above, r.elev_below,
                static_cast<unsigned long long>(r.phantom_cells), static_cast<unsigned long long>(r.phantom_cells_cc),
                static_cast<unsigned long long>(r.cc_mixed), static_cast<unsigned long long>(r.cc_valid),
-               static_cast<unsigned long long>(r.cc_false_ranges), r.seconds);
+               static_cast<unsigned long long>(r.cc_false_ranges), static_cast<unsigned long long>(phantom_mixed_pixels(r)),
+               static_cast<unsigned long long>(r.phantom_mixed_turn), static_cast<unsigned long long>(r.mixed_turn), r.seconds);
 }
 }  // namespace
 
@@ -749,6 +785,12 @@ int main(int argc, char** argv) {
     std::sort(pm.rbegin(), pm.rend());
     std::printf("  the mixed pixels among them, by what surrounds them:\n");
     for (const auto& [n, k] : pm) std::printf("    %-90s %6llu\n", k.c_str(), static_cast<unsigned long long>(n));
+    std::printf("  of them on a line next to a nod turn (the last before the nod reverses or the first after): %llu "
+                "(%.1f %%, %llu on the last line before; of all mixed pixels %.1f %% lie on such lines)\n",
+                static_cast<unsigned long long>(all.phantom_mixed_turn),
+                100.0 * static_cast<double>(all.phantom_mixed_turn) / static_cast<double>(phantom_mixed_pixels(all)),
+                static_cast<unsigned long long>(all.phantom_mixed_turn_last),
+                all.mixed ? 100.0 * static_cast<double>(all.mixed_turn) / static_cast<double>(all.mixed) : 0.0);
   }
   std::vector<const Result*> order;
   for (const auto& r : results) order.push_back(&r);

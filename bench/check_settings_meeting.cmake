@@ -2,7 +2,7 @@
 # with --json and checks that its per-bar counts ("settings_meeting") are those of its own rows:
 # recall >= 0.90, valid rejected <= 1 %, no phantom cell, and all three; and that its counts of
 # what check_consistency removes after the filters, and of the kept mixed pixels standing more
-# than 0.3 m above the true top by what surrounds them, add up.
+# than 0.3 m above the true top by what surrounds them and next to a nod turn, add up.
 # Usage: cmake -DSWEEP=<pcdp_mixed_sweep> -DOUT=<json file> -P check_settings_meeting.cmake
 execute_process(COMMAND "${SWEEP}" --index 0 --index 3 --index 19 --misses 0 --json "${OUT}"
                 RESULT_VARIABLE rc OUTPUT_VARIABLE out)
@@ -31,7 +31,21 @@ set(all 0)
 math(EXPR last "${n} - 1")
 set(cc_valid 0)
 set(cc_mixed 0)
+set(turn_mixed 0)
+set(rows_phantom_mixed 0)
 foreach(k RANGE ${last})
+  # The kept mixed pixels more than 0.3 m above the true top, and those among them on a line next
+  # to a nod turn: at most all of them.
+  string(JSON pm GET "${json}" settings ${k} phantom_mixed_pixels)
+  string(JSON pt GET "${json}" settings ${k} phantom_mixed_pixels_next_to_nod_turn)
+  string(JSON mt GET "${json}" settings ${k} mixed_next_to_nod_turn)
+  string(JSON n_mixed_all GET "${json}" settings ${k} mixed)
+  if(pt GREATER pm OR pt GREATER mt OR mt GREATER n_mixed_all)
+    message(FATAL_ERROR "row ${k}: ${pt} kept mixed pixels above the true top next to a nod turn, of ${pm}; "
+                        "${mt} of all ${n_mixed_all} mixed pixels next to one")
+  endif()
+  math(EXPR turn_mixed "${turn_mixed} + ${pt}")
+  math(EXPR rows_phantom_mixed "${rows_phantom_mixed} + ${pm}")
   # What check_consistency removes after the filters: among the returns the filters kept.
   string(JSON cv GET "${json}" settings ${k} check_consistency_valid)
   string(JSON cm GET "${json}" settings ${k} check_consistency_mixed)
@@ -119,5 +133,18 @@ endforeach()
 list(LENGTH rows kinds_count)
 if(NOT sum EQUAL phantom_mixed OR kinds_count LESS 2)
   message(FATAL_ERROR "the ${kinds_count} rows by what surrounds them add up to ${sum}, not ${phantom_mixed}:\n${kinds}")
+endif()
+# Those next to a nod turn: the pooled row sums the rows and agrees with the count by truth
+# label, the printed line says the pooled number, and it lies strictly between 0 and all of them
+# (or a wrong count could pass unseen).
+string(JSON pooled_pm GET "${json}" pooled phantom_mixed_pixels)
+string(JSON pooled_pt GET "${json}" pooled phantom_mixed_pixels_next_to_nod_turn)
+if(NOT "${pooled_pm} ${pooled_pt}" STREQUAL "${phantom_mixed} ${turn_mixed}" OR NOT rows_phantom_mixed EQUAL phantom_mixed)
+  message(FATAL_ERROR "kept mixed pixels above the true top: pooled ${pooled_pm}, ${pooled_pt} next to a nod turn; "
+                      "rows sum to ${rows_phantom_mixed}, ${turn_mixed}; printed ${phantom_mixed}")
+endif()
+if(NOT out MATCHES "  of them on a line next to a nod turn [^\n]*: ${turn_mixed} \\(" OR turn_mixed EQUAL 0
+   OR turn_mixed EQUAL phantom_mixed)
+  message(FATAL_ERROR "the printed count next to a nod turn is not ${turn_mixed} (of ${phantom_mixed}), or is not between 0 and all:\n${out}")
 endif()
 message(STATUS "settings meeting each bar: ${got}; check_consistency removes ${cc_mixed} mixed, ${cc_valid} valid")
