@@ -72,6 +72,7 @@
 #include "pcdp/pipeline/config.hpp"
 #include "pcdp/sim/nodding_sim.hpp"
 #include "sim/bench_scenes.hpp"
+#include "stages/reject_mixed_pixels_detail.hpp"  // sweep_starts: the stage's split at the nod's turns
 #include "pcdp/fusion/consistency.hpp"
 #include "pcdp/stages/fuse_elevation.hpp"
 #include "pcdp/stages/register.hpp"
@@ -353,18 +354,17 @@ std::string phantom_kind(const Pass& p, const sim::SimPass& sp, std::size_t i, s
   return k;
 }
 
-/// Whether line k of an organized pass is the last line before the nod reverses or the first after
-/// it, by the stage's rule (three consecutive lines' nod angles, reject_mixed_pixels.cpp): there
-/// the sequence of lines across which the stage compares a beam ends, so the line has neighbours
-/// across lines on one side only.
-/// `last`: the last line before the reversal, the sweep's extreme, beyond which no line looked.
-bool next_to_nod_turn(const Pass& p, std::size_t k, bool* last = nullptr) {
-  const auto nod = [&](std::size_t q) { return static_cast<double>(p.nod[p.line_begin[q]]); };
-  const auto reverses_at = [&](std::size_t q) {
-    return q >= 2 && q < p.line_count() && (nod(q) - nod(q - 1)) * (nod(q - 1) - nod(q - 2)) < 0;
-  };
-  if (last) *last = reverses_at(k + 1);
-  return reverses_at(k) || reverses_at(k + 1);
+/// Whether line k of an organized pass is the last line of a sweep before the nod reverses or the
+/// first after it, by the stage's own split (mixed_detail::sweep_starts): there the sequence of
+/// lines across which the stage compares a beam ends, so the line has neighbours across lines on
+/// one side only. (The pass's first and last lines have too, but are not turns.) `starts`: the
+/// pass's sweep_starts(); `last`: k is the last line before a reversal, the sweep's extreme,
+/// beyond which no line looked.
+bool next_to_nod_turn(const std::vector<std::size_t>& starts, std::size_t k, bool* last = nullptr) {
+  // The inner starts (not 0, not line_count()) are the first lines after a reversal.
+  const auto turn_starts_at = [&](std::size_t q) { return std::binary_search(starts.begin() + 1, starts.end() - 1, q); };
+  if (last) *last = turn_starts_at(k + 1);
+  return turn_starts_at(k) || turn_starts_at(k + 1);
 }
 
 bool is_filter_label(Label l) { return l == Label::kOcclusion || l == Label::kMixedPixel || l == Label::kOutlier || l == Label::kLowAmplitude || l == Label::kInconsistent; }
@@ -398,6 +398,7 @@ Result run_setting(const SweepSetting& st) {
     fuse_pass(grid, p, fep, st.sensor.range_sigma * st.sensor.range_sigma);
     filtered.push_back(p);
     const std::size_t nb = static_cast<std::size_t>(c.scanner.beams);
+    const std::vector<std::size_t> starts = mixed_detail::sweep_starts(p);
     for (std::size_t i = 0; i < p.size(); ++i) {
       if (!p.is_kept(i) || !(p.z[i] > c.scene.top_height(p.x[i], p.y[i]) + 0.3)) continue;
       if (p.z[i] > cell_top(c.scene, grid.resolution(), grid.cell_index(p.x[i]), grid.cell_index(p.y[i])).second + 0.3) {
@@ -405,7 +406,7 @@ Result run_setting(const SweepSetting& st) {
         if (sp.truth[i] == Label::kMixedPixel) {
           ++res.phantom_mixed[phantom_kind(p, sp, i, nb, st.sensor.beam_divergence)];
           bool last = false;
-          res.phantom_mixed_turn += next_to_nod_turn(p, i / nb, &last);
+          res.phantom_mixed_turn += next_to_nod_turn(starts, i / nb, &last);
           res.phantom_mixed_turn_last += last;
         }
       }
@@ -449,7 +450,7 @@ Result run_setting(const SweepSetting& st) {
       const Label t = sp.truth[i], l = p.label[i];
       if (t == Label::kMixedPixel) {
         ++res.mixed;
-        res.mixed_turn += next_to_nod_turn(p, i / nb);
+        res.mixed_turn += next_to_nod_turn(starts, i / nb);
         res.mixed_reaching += reaching[i];
         if (l != Label::kKept) {
           ++res.mixed_rejected;
@@ -667,7 +668,8 @@ void json_row(FILE* f, const Result& r, const char* name) {
                "\"phantom_cells_with_check_consistency\": %llu, \"check_consistency_mixed\": %llu, "
                "\"check_consistency_valid\": %llu, \"check_consistency_false_ranges\": %llu, "
                "\"phantom_mixed_pixels\": %llu, \"phantom_mixed_pixels_next_to_nod_turn\": %llu, "
-               "\"mixed_next_to_nod_turn\": %llu, \"seconds\": %.2f}",
+               "\"phantom_mixed_pixels_on_last_line_before_nod_turn\": %llu, \"mixed_next_to_nod_turn\": %llu, "
+               "\"seconds\": %.2f}",
                name, r.sensor.c_str(), static_cast<unsigned long long>(r.returns), static_cast<unsigned long long>(r.mixed),
                static_cast<unsigned long long>(r.mixed_rejected), r.recall(), static_cast<unsigned long long>(r.mixed_reaching), static_cast<unsigned long long>(r.valid),
                static_cast<unsigned long long>(r.valid_rejected), 100 * r.valid_rate(),
@@ -677,7 +679,8 @@ void json_row(FILE* f, const Result& r, const char* name) {
                static_cast<unsigned long long>(r.phantom_cells), static_cast<unsigned long long>(r.phantom_cells_cc),
                static_cast<unsigned long long>(r.cc_mixed), static_cast<unsigned long long>(r.cc_valid),
                static_cast<unsigned long long>(r.cc_false_ranges), static_cast<unsigned long long>(phantom_mixed_pixels(r)),
-               static_cast<unsigned long long>(r.phantom_mixed_turn), static_cast<unsigned long long>(r.mixed_turn), r.seconds);
+               static_cast<unsigned long long>(r.phantom_mixed_turn), static_cast<unsigned long long>(r.phantom_mixed_turn_last),
+               static_cast<unsigned long long>(r.mixed_turn), r.seconds);
 }
 }  // namespace
 

@@ -4,7 +4,7 @@
 # what check_consistency removes after the filters, and of the kept mixed pixels standing more
 # than 0.3 m above the true top by what surrounds them and next to a nod turn, add up.
 # Usage: cmake -DSWEEP=<pcdp_mixed_sweep> -DOUT=<json file> -P check_settings_meeting.cmake
-execute_process(COMMAND "${SWEEP}" --index 0 --index 3 --index 19 --misses 0 --json "${OUT}"
+execute_process(COMMAND "${SWEEP}" --index 0 --index 3 --index 19 --index 21 --misses 0 --json "${OUT}"
                 RESULT_VARIABLE rc OUTPUT_VARIABLE out)
 if(NOT rc EQUAL 0)
   message(FATAL_ERROR "pcdp_mixed_sweep exited ${rc}")
@@ -32,19 +32,25 @@ math(EXPR last "${n} - 1")
 set(cc_valid 0)
 set(cc_mixed 0)
 set(turn_mixed 0)
+set(turn_last 0)
+set(turn_all 0)
 set(rows_phantom_mixed 0)
 foreach(k RANGE ${last})
-  # The kept mixed pixels more than 0.3 m above the true top, and those among them on a line next
-  # to a nod turn: at most all of them.
+  # The kept mixed pixels more than 0.3 m above the true top, those among them on a line next to a
+  # nod turn and those on the last line before one: each at most the one before (upper bounds;
+  # the sums below must also fall strictly between 0 and the whole).
   string(JSON pm GET "${json}" settings ${k} phantom_mixed_pixels)
   string(JSON pt GET "${json}" settings ${k} phantom_mixed_pixels_next_to_nod_turn)
+  string(JSON pl GET "${json}" settings ${k} phantom_mixed_pixels_on_last_line_before_nod_turn)
   string(JSON mt GET "${json}" settings ${k} mixed_next_to_nod_turn)
   string(JSON n_mixed_all GET "${json}" settings ${k} mixed)
-  if(pt GREATER pm OR pt GREATER mt OR mt GREATER n_mixed_all)
-    message(FATAL_ERROR "row ${k}: ${pt} kept mixed pixels above the true top next to a nod turn, of ${pm}; "
-                        "${mt} of all ${n_mixed_all} mixed pixels next to one")
+  if(pt GREATER pm OR pl GREATER pt OR pt GREATER mt OR mt GREATER n_mixed_all)
+    message(FATAL_ERROR "row ${k}: ${pt} kept mixed pixels above the true top next to a nod turn (${pl} on the "
+                        "last line before), of ${pm}; ${mt} of all ${n_mixed_all} mixed pixels next to one")
   endif()
   math(EXPR turn_mixed "${turn_mixed} + ${pt}")
+  math(EXPR turn_last "${turn_last} + ${pl}")
+  math(EXPR turn_all "${turn_all} + ${mt}")
   math(EXPR rows_phantom_mixed "${rows_phantom_mixed} + ${pm}")
   # What check_consistency removes after the filters: among the returns the filters kept.
   string(JSON cv GET "${json}" settings ${k} check_consistency_valid)
@@ -139,12 +145,19 @@ endif()
 # (or a wrong count could pass unseen).
 string(JSON pooled_pm GET "${json}" pooled phantom_mixed_pixels)
 string(JSON pooled_pt GET "${json}" pooled phantom_mixed_pixels_next_to_nod_turn)
-if(NOT "${pooled_pm} ${pooled_pt}" STREQUAL "${phantom_mixed} ${turn_mixed}" OR NOT rows_phantom_mixed EQUAL phantom_mixed)
-  message(FATAL_ERROR "kept mixed pixels above the true top: pooled ${pooled_pm}, ${pooled_pt} next to a nod turn; "
-                      "rows sum to ${rows_phantom_mixed}, ${turn_mixed}; printed ${phantom_mixed}")
+string(JSON pooled_pl GET "${json}" pooled phantom_mixed_pixels_on_last_line_before_nod_turn)
+string(JSON pooled_mt GET "${json}" pooled mixed_next_to_nod_turn)
+if(NOT "${pooled_pm} ${pooled_pt} ${pooled_pl} ${pooled_mt}" STREQUAL "${phantom_mixed} ${turn_mixed} ${turn_last} ${turn_all}"
+   OR NOT rows_phantom_mixed EQUAL phantom_mixed)
+  message(FATAL_ERROR "kept mixed pixels above the true top: pooled ${pooled_pm}, ${pooled_pt} next to a nod turn, "
+                      "${pooled_pl} on the last line before, ${pooled_mt} of all mixed pixels next to one; rows sum to "
+                      "${rows_phantom_mixed}, ${turn_mixed}, ${turn_last}, ${turn_all}; printed ${phantom_mixed}")
 endif()
-if(NOT out MATCHES "  of them on a line next to a nod turn [^\n]*: ${turn_mixed} \\(" OR turn_mixed EQUAL 0
-   OR turn_mixed EQUAL phantom_mixed)
-  message(FATAL_ERROR "the printed count next to a nod turn is not ${turn_mixed} (of ${phantom_mixed}), or is not between 0 and all:\n${out}")
+# Both kinds of line hold some (the last before the reversal and the first after), so that a
+# rule that missed either would change a count that is checked.
+if(NOT out MATCHES "  of them on a line next to a nod turn [^\n]*: ${turn_mixed} \\([^\n]*, ${turn_last} on the last line before;"
+   OR turn_last EQUAL 0 OR turn_last EQUAL turn_mixed OR turn_mixed EQUAL phantom_mixed)
+  message(FATAL_ERROR "the printed count next to a nod turn is not ${turn_mixed} with ${turn_last} on the last line "
+                      "before (of ${phantom_mixed}), or the counts do not fall strictly between 0 and the whole:\n${out}")
 endif()
 message(STATUS "settings meeting each bar: ${got}; check_consistency removes ${cc_mixed} mixed, ${cc_valid} valid")

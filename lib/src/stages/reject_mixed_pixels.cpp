@@ -494,16 +494,7 @@ std::size_t mark_round(Pass& pass, const MixedPixelParams& p, const SensorParams
   }
   if (p.across_lines && organized) {
     v.across = true;  // a return's patch: its neighbouring beams on its line
-    // Lines follow each other in nod only within one sweep: where the nod reverses, the next line
-    // folds back over the last ones, so each sweep is a sequence of its own. The reversal is read
-    // from three consecutive lines only (the extreme line ends its sweep), so a streamed window
-    // of `reach()` lines on each side splits exactly where the whole pass does; a reversal
-    // hidden in a plateau of equal encoder readings is not split.
-    std::vector<std::size_t> sweep_begin{0};
-    const auto nod_of = [&](std::size_t k) { return static_cast<double>(pass.nod[pass.line_begin[k]]); };
-    for (std::size_t k = 2; k < pass.line_count(); ++k)
-      if ((nod_of(k) - nod_of(k - 1)) * (nod_of(k - 1) - nod_of(k - 2)) < 0) sweep_begin.push_back(k);
-    sweep_begin.push_back(pass.line_count());
+    const std::vector<std::size_t> sweep_begin = sweep_starts(pass);  // each sweep is a sequence of its own
     const std::size_t sweeps = sweep_begin.size() - 1;
     std::vector<char>& stretch_tested = sc.stretch_tested;  // [sweep * width + column]
     if (focus) {

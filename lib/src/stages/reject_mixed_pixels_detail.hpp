@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <vector>
 
+#include "pcdp/core/pass.hpp"
 #include "pcdp/stages/reject_mixed_pixels.hpp"
 
 namespace pcdp::mixed_detail {
@@ -23,6 +24,21 @@ constexpr int kFootprintReach = 16;
 /// post's top are within two or three lines of its mixtures near a nod reversal, where the nod
 /// barely moves from line to line.
 constexpr long kObjectReach = 4;
+
+/// The sweeps of a pass: the first line of each, then line_count(). Lines follow each other in nod
+/// only within one sweep: where the nod reverses, the next line folds back over the last ones, so
+/// each sweep is a sequence of its own for the tests across lines. The reversal is read from three
+/// consecutive lines' first nod angles only (the extreme line ends its sweep), so a streamed
+/// window of `reach()` lines on each side splits exactly where the whole pass does; a reversal
+/// hidden in a plateau of equal encoder readings is not split.
+inline std::vector<std::size_t> sweep_starts(const Pass& pass) {
+  std::vector<std::size_t> starts{0};
+  const auto nod_of = [&](std::size_t k) { return static_cast<double>(pass.nod[pass.line_begin[k]]); };
+  for (std::size_t k = 2; k < pass.line_count(); ++k)
+    if ((nod_of(k) - nod_of(k - 1)) * (nod_of(k - 1) - nod_of(k - 2)) < 0) starts.push_back(k);
+  starts.push_back(pass.line_count());
+  return starts;
+}
 
 /// The smallest range step that makes an edge at range r (jump_min, or jump_ratio of r if larger).
 inline double jump_at(const MixedPixelParams& p, double r) { return std::max(p.jump_min, p.jump_ratio * r); }
