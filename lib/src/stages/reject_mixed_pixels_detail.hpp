@@ -25,12 +25,13 @@ constexpr int kFootprintReach = 16;
 /// barely moves from line to line.
 constexpr long kObjectReach = 4;
 
-/// The sweeps of a pass: the first line of each, then line_count(). Lines follow each other in nod
-/// only within one sweep: where the nod reverses, the next line folds back over the last ones, so
-/// each sweep is a sequence of its own for the tests across lines. The reversal is read from three
-/// consecutive lines' first nod angles only (the extreme line ends its sweep), so a streamed
-/// window of `reach()` lines on each side splits exactly where the whole pass does; a reversal
-/// hidden in a plateau of equal encoder readings is not split.
+/// The sweeps of a pass whose lines each hold a return (an organized pass): the first line of
+/// each, then line_count(). Lines follow each other in nod only within one sweep: where the nod
+/// reverses, the next line folds back over the last ones, so each sweep is a sequence of its own
+/// for the tests across lines. The reversal is read from three consecutive lines' first nod
+/// angles only (the extreme line ends its sweep), so a streamed window of `reach()` lines on each
+/// side splits exactly where the whole pass does; a reversal hidden in a plateau of equal encoder
+/// readings is not split.
 inline std::vector<std::size_t> sweep_starts(const Pass& pass) {
   std::vector<std::size_t> starts{0};
   const auto nod_of = [&](std::size_t k) { return static_cast<double>(pass.nod[pass.line_begin[k]]); };
