@@ -2,7 +2,8 @@
 # with --json and checks that its per-bar counts ("settings_meeting") are those of its own rows:
 # recall >= 0.90, valid rejected <= 1 %, no phantom cell, and all three; and that its counts of
 # what check_consistency removes after the filters, and of the kept mixed pixels standing more
-# than 0.3 m above the true top by what surrounds them and next to a nod turn, add up.
+# than 0.3 m above the true top by what surrounds them and next to a nod turn, add up; and so do
+# its counts of cells more than 0.3 m below the true top and against a perfect filter's map.
 # Usage: cmake -DSWEEP=<pcdp_mixed_sweep> -DOUT=<json file> -P check_settings_meeting.cmake
 execute_process(COMMAND "${SWEEP}" --index 0 --index 3 --index 19 --index 21 --misses 0 --json "${OUT}"
                 RESULT_VARIABLE rc OUTPUT_VARIABLE out)
@@ -35,7 +36,27 @@ set(turn_mixed 0)
 set(turn_last 0)
 set(turn_all 0)
 set(rows_phantom_mixed 0)
+set(below 0)
+set(below_unseen 0)
+set(lowered 0)
+set(emptied 0)
 foreach(k RANGE ${last})
+  # The map's other side: cells more than 0.3 m below the lowest true top, those of them a perfect
+  # filter's map shares (at most those), and the cells the filters lowered or emptied against
+  # that map (each at most the cells with a surface in one of the two maps: bounded by all cells
+  # plus the emptied ones).
+  string(JSON cb GET "${json}" settings ${k} cells_below_true_top)
+  string(JSON cu GET "${json}" settings ${k} cells_below_true_top_unseen)
+  string(JSON cl GET "${json}" settings ${k} cells_lowered_by_filters)
+  string(JSON ce GET "${json}" settings ${k} cells_emptied_by_filters)
+  string(JSON n_cells GET "${json}" settings ${k} elevation_cells)
+  if(cu GREATER cb OR cb GREATER n_cells OR cl GREATER n_cells)
+    message(FATAL_ERROR "row ${k}: ${cb} cells below the true top (${cu} also with a perfect filter), ${cl} lowered, of ${n_cells}")
+  endif()
+  math(EXPR below "${below} + ${cb}")
+  math(EXPR below_unseen "${below_unseen} + ${cu}")
+  math(EXPR lowered "${lowered} + ${cl}")
+  math(EXPR emptied "${emptied} + ${ce}")
   # The kept mixed pixels more than 0.3 m above the true top, those among them on a line next to a
   # nod turn and those on the last line before one: each at most the one before (upper bounds;
   # the sums below must also fall strictly between 0 and the whole).
@@ -158,5 +179,22 @@ if(NOT out MATCHES "  of them on a line next to a nod turn [^\n]*: ${turn_mixed}
    OR turn_last EQUAL 0 OR turn_last EQUAL turn_mixed OR turn_mixed EQUAL phantom_mixed)
   message(FATAL_ERROR "the printed count next to a nod turn is not ${turn_mixed} with ${turn_last} on the last line "
                       "before (of ${phantom_mixed}), or the counts do not fall strictly between 0 and the whole:\n${out}")
+endif()
+# Cells below the true top and against a perfect filter's map: the pooled row sums the rows, the
+# printed line says the pooled numbers, and the counts fall strictly between 0 and the whole.
+set(pooled_below "")
+foreach(key cells_below_true_top cells_below_true_top_unseen cells_lowered_by_filters cells_emptied_by_filters)
+  string(JSON v GET "${json}" pooled ${key})
+  string(APPEND pooled_below " ${v}")
+endforeach()
+if(NOT pooled_below STREQUAL " ${below} ${below_unseen} ${lowered} ${emptied}")
+  message(FATAL_ERROR "cells below the true top, unseen, lowered, emptied: pooled${pooled_below}; rows sum to "
+                      "${below} ${below_unseen} ${lowered} ${emptied}")
+endif()
+string(FIND "${out}" "cells more than 0.3 m below the lowest true top: ${below}, ${below_unseen} of them also with a perfect filter" at)
+string(FIND "${out}" "perfect filter's map: ${lowered} cells lowered by more than 0.3 m, ${emptied} left without a surface" at2)
+if(at LESS 0 OR at2 LESS 0 OR below_unseen EQUAL 0 OR below_unseen EQUAL below OR lowered EQUAL 0 OR emptied EQUAL 0)
+  message(FATAL_ERROR "the printed line does not say ${below} cells below the true top (${below_unseen} unseen), "
+                      "${lowered} lowered, ${emptied} emptied, or a count is 0 or the whole:\n${out}")
 endif()
 message(STATUS "settings meeting each bar: ${got}; check_consistency removes ${cc_mixed} mixed, ${cc_valid} valid")
