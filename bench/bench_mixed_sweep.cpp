@@ -36,10 +36,10 @@
 // pipelines/nodding_terrain.yaml): column "+cc", its phantom cells; below the pooled row, the
 // mixed pixels, valid returns and false ranges check_consistency removes after the filters (the
 // column's price). The map's other side: cells whose surface lies more than 0.3 m below the lowest
-// true top, those of them where a perfect filter's map does too (or has no surface: no valid return
-// reached the top), and against that map (the same passes with every truth-valid return kept and
-// nothing else: what the filters' false rejections cost) the cells lowered by more than 0.3 m and
-// the cells left without a surface.
+// true top, and those of them where a perfect filter's map (every truth-valid return kept, nothing
+// else) lies that low too (the valid returns did not reach the top); and what the false
+// rejections alone cost: the map of the truth-valid returns the filters kept against the perfect
+// one, its cells lowered by more than 0.3 m and those left without a surface.
 //
 // Usage: pcdp_mixed_sweep [--set tuning|heldout] [--index N]... [--json FILE] [--misses K] [--rank recall|f1|valid]
 //                         [--require-recall R] [--require-valid-rejected PCT] [--require-occlusion-recall R]
@@ -280,10 +280,10 @@ struct Result {
   /// The kept returns check_consistency labels inconsistent after the filters, by truth: mixed
   /// pixels, valid returns (the price of the "+cc" column), false ranges (occlusion, low amplitude).
   std::uint64_t cc_mixed = 0, cc_valid = 0, cc_false_ranges = 0;
-  /// Cells > 0.3 m below the lowest true top; of them, those where the perfect filter's map is too
-  /// (or has no surface); cells > 0.3 m below the perfect filter's surface; cells it has a surface
-  /// in and this map none.
-  std::uint64_t cells_below = 0, cells_below_unseen = 0, cells_lowered = 0, cells_emptied = 0;
+  /// Cells > 0.3 m below the lowest true top; of them, those where the perfect filter's map is too.
+  /// The perfect map's cells with a surface; of them, those the map of the valid returns the
+  /// filters kept has > 0.3 m lower, or no surface in.
+  std::uint64_t cells_below = 0, cells_below_unseen = 0, perfect_cells = 0, cells_lowered = 0, cells_emptied = 0;
   std::map<std::string, std::uint64_t> phantom_points;  ///< kept points > 0.3 m above their cell's true top, by truth label
   /// The mixed pixels among them, by what surrounds them (phantom_kind()).
   std::map<std::string, std::uint64_t> phantom_mixed;
@@ -395,23 +395,25 @@ Result run_setting(const SweepSetting& st) {
   rp.max_pose_gap = 0.5;  // as pipelines/nodding_terrain.yaml
   const FuseElevationParams fep;
   ElevationGrid grid = make_elevation_grid(fep);
-  // The map a perfect filter gives: every truth-valid return kept, nothing else.
-  ElevationGrid perfect = make_elevation_grid(fep);
+  // The map a perfect filter gives (every truth-valid return kept, nothing else), and the map of
+  // the truth-valid returns the filters kept (the cost of their false rejections alone).
+  ElevationGrid perfect = make_elevation_grid(fep), kept_valid = make_elevation_grid(fep);
+  const auto fuse_valid = [&](ElevationGrid& g, Pass q, const sim::SimPass& sp) {
+    for (std::size_t i = 0; i < q.size(); ++i)
+      if (sp.truth[i] != Label::kKept) q.label[i] = Label::kMixedPixel;  // any label but kKept
+    fuse_pass(g, q, fep, st.sensor.range_sigma * st.sensor.range_sigma);
+  };
   std::vector<Pass> filtered;  // after reject_mixed_pixels, for check_consistency
   for (const auto& sp : r.passes) {
     Pass p = sp.pass;
     register_pass(p, rp, st.sensor, T_V_N, &poses, PoseSigma{}, c.rpy_order);
-    {
-      Pass only_valid = p;
-      for (std::size_t i = 0; i < p.size(); ++i)
-        if (sp.truth[i] != Label::kKept) only_valid.label[i] = Label::kMixedPixel;  // any label but kKept
-      fuse_pass(perfect, only_valid, fep, st.sensor.range_sigma * st.sensor.range_sigma);
-    }
+    fuse_valid(perfect, p, sp);
     reject_occlusion(p, OcclusionParams{}, st.sensor);
     std::vector<char> reaching(p.size());
     for (std::size_t i = 0; i < p.size(); ++i) reaching[i] = p.is_kept(i);
     reject_mixed_pixels(p, sweep_params(st.sensor), st.sensor, PoseSigma{});
     fuse_pass(grid, p, fep, st.sensor.range_sigma * st.sensor.range_sigma);
+    fuse_valid(kept_valid, p, sp);
     filtered.push_back(p);
     const std::size_t nb = static_cast<std::size_t>(c.scanner.beams);
     const std::vector<std::size_t> starts = mixed_detail::sweep_starts(p);
@@ -542,20 +544,23 @@ Result run_setting(const SweepSetting& st) {
     res.elev_above = std::max(res.elev_above, e - tmax);
     res.elev_below = std::max(res.elev_below, tmin - e);
     res.phantom_cells += e - tmax > 0.3;
-    const ElevationCell* pc = perfect.find(ix, iy);
-    double ep = 0, vp = 0;
-    const bool has_perfect = pc && perfect.surface(*pc, ep, vp);
     if (tmin - e > 0.3) {
       ++res.cells_below;
-      res.cells_below_unseen += !has_perfect || tmin - ep > 0.3;
+      const ElevationCell* pc = perfect.find(ix, iy);
+      double ep = 0, vp = 0;
+      res.cells_below_unseen += pc && perfect.surface(*pc, ep, vp) && tmin - ep > 0.3;
     }
-    res.cells_lowered += has_perfect && ep - e > 0.3;
   });
   perfect.for_each([&](std::int64_t ix, std::int64_t iy, const ElevationCell& pc) {
-    double e = 0, var = 0;
-    if (!perfect.surface(pc, e, var)) return;
-    const ElevationCell* fc = grid.find(ix, iy);
-    res.cells_emptied += !fc || !grid.surface(*fc, e, var);
+    double ep = 0, vp = 0;
+    if (!perfect.surface(pc, ep, vp)) return;
+    ++res.perfect_cells;
+    const ElevationCell* kc = kept_valid.find(ix, iy);
+    double ek = 0, vk = 0;
+    if (!kc || !kept_valid.surface(*kc, ek, vk))
+      ++res.cells_emptied;
+    else
+      res.cells_lowered += ep - ek > 0.3;
   });
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return res;
@@ -585,6 +590,7 @@ Result pool(const std::vector<Result>& rs) {
     p.cc_false_ranges += r.cc_false_ranges;
     p.cells_below += r.cells_below;
     p.cells_below_unseen += r.cells_below_unseen;
+    p.perfect_cells += r.perfect_cells;
     p.cells_lowered += r.cells_lowered;
     p.cells_emptied += r.cells_emptied;
     p.elev_above = std::max(p.elev_above, r.elev_above);
@@ -704,7 +710,8 @@ void json_row(FILE* f, const Result& r, const char* name) {
                "\"phantom_mixed_pixels\": %llu, \"phantom_mixed_pixels_next_to_nod_turn\": %llu, "
                "\"phantom_mixed_pixels_on_last_line_before_nod_turn\": %llu, \"mixed_next_to_nod_turn\": %llu, "
                "\"cells_below_true_top\": %llu, \"cells_below_true_top_unseen\": %llu, "
-               "\"cells_lowered_by_filters\": %llu, \"cells_emptied_by_filters\": %llu, \"seconds\": %.2f}",
+               "\"perfect_filter_cells\": %llu, \"cells_lowered_by_false_rejections\": %llu, "
+               "\"cells_emptied_by_false_rejections\": %llu, \"seconds\": %.2f}",
                name, r.sensor.c_str(), static_cast<unsigned long long>(r.returns), static_cast<unsigned long long>(r.mixed),
                static_cast<unsigned long long>(r.mixed_rejected), r.recall(), static_cast<unsigned long long>(r.mixed_reaching), static_cast<unsigned long long>(r.valid),
                static_cast<unsigned long long>(r.valid_rejected), 100 * r.valid_rate(),
@@ -716,8 +723,8 @@ void json_row(FILE* f, const Result& r, const char* name) {
                static_cast<unsigned long long>(r.cc_false_ranges), static_cast<unsigned long long>(phantom_mixed_pixels(r)),
                static_cast<unsigned long long>(r.phantom_mixed_turn), static_cast<unsigned long long>(r.phantom_mixed_turn_last),
                static_cast<unsigned long long>(r.mixed_turn), static_cast<unsigned long long>(r.cells_below),
-               static_cast<unsigned long long>(r.cells_below_unseen), static_cast<unsigned long long>(r.cells_lowered),
-               static_cast<unsigned long long>(r.cells_emptied), r.seconds);
+               static_cast<unsigned long long>(r.cells_below_unseen), static_cast<unsigned long long>(r.perfect_cells),
+               static_cast<unsigned long long>(r.cells_lowered), static_cast<unsigned long long>(r.cells_emptied), r.seconds);
 }
 }  // namespace
 
@@ -816,11 +823,12 @@ int main(int argc, char** argv) {
               static_cast<unsigned long long>(all.cc_mixed), static_cast<unsigned long long>(all.cc_valid),
               all.valid ? 100.0 * static_cast<double>(all.cc_valid) / static_cast<double>(all.valid) : 0.0,
               static_cast<unsigned long long>(all.cc_false_ranges));
-  std::printf("cells more than 0.3 m below the lowest true top: %llu, %llu of them also with a perfect filter (no valid return "
-              "reached the top); against a perfect filter's map: %llu cells lowered by more than 0.3 m, %llu left without a "
-              "surface\n",
+  std::printf("cells more than 0.3 m below the lowest true top: %llu, %llu of them also with a perfect filter; the false "
+              "rejections alone (the valid returns kept against all of them, %llu cells): %llu cells lowered by more than "
+              "0.3 m, %llu left without a surface\n",
               static_cast<unsigned long long>(all.cells_below), static_cast<unsigned long long>(all.cells_below_unseen),
-              static_cast<unsigned long long>(all.cells_lowered), static_cast<unsigned long long>(all.cells_emptied));
+              static_cast<unsigned long long>(all.perfect_cells), static_cast<unsigned long long>(all.cells_lowered),
+              static_cast<unsigned long long>(all.cells_emptied));
   std::printf("kept points more than 0.3 m above their cell's true top, by truth label:");
   for (const auto& [k, n] : all.phantom_points) std::printf(" %s %llu;", k.c_str(), static_cast<unsigned long long>(n));
   std::printf("\n");

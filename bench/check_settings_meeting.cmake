@@ -41,17 +41,18 @@ set(below_unseen 0)
 set(lowered 0)
 set(emptied 0)
 foreach(k RANGE ${last})
-  # The map's other side: cells more than 0.3 m below the lowest true top, those of them a perfect
-  # filter's map shares (at most those), and the cells the filters lowered or emptied against
-  # that map (each at most the cells with a surface in one of the two maps: bounded by all cells
-  # plus the emptied ones).
+  # The map's other side: the cells more than 0.3 m below the lowest true top a perfect filter's
+  # map shares are among them; the cells the false rejections lower or empty are among the
+  # perfect map's cells, and lowered and emptied are disjoint.
   string(JSON cb GET "${json}" settings ${k} cells_below_true_top)
   string(JSON cu GET "${json}" settings ${k} cells_below_true_top_unseen)
-  string(JSON cl GET "${json}" settings ${k} cells_lowered_by_filters)
-  string(JSON ce GET "${json}" settings ${k} cells_emptied_by_filters)
-  string(JSON n_cells GET "${json}" settings ${k} elevation_cells)
-  if(cu GREATER cb OR cb GREATER n_cells OR cl GREATER n_cells)
-    message(FATAL_ERROR "row ${k}: ${cb} cells below the true top (${cu} also with a perfect filter), ${cl} lowered, of ${n_cells}")
+  string(JSON cp GET "${json}" settings ${k} perfect_filter_cells)
+  string(JSON cl GET "${json}" settings ${k} cells_lowered_by_false_rejections)
+  string(JSON ce GET "${json}" settings ${k} cells_emptied_by_false_rejections)
+  math(EXPR cle "${cl} + ${ce}")
+  if(cu GREATER cb OR cle GREATER cp)
+    message(FATAL_ERROR "row ${k}: ${cb} cells below the true top (${cu} also with a perfect filter); ${cl} lowered and "
+                        "${ce} emptied of the perfect map's ${cp}")
   endif()
   math(EXPR below "${below} + ${cb}")
   math(EXPR below_unseen "${below_unseen} + ${cu}")
@@ -181,9 +182,10 @@ if(NOT out MATCHES "  of them on a line next to a nod turn [^\n]*: ${turn_mixed}
                       "before (of ${phantom_mixed}), or the counts do not fall strictly between 0 and the whole:\n${out}")
 endif()
 # Cells below the true top and against a perfect filter's map: the pooled row sums the rows, the
-# printed line says the pooled numbers, and the counts fall strictly between 0 and the whole.
+# printed line says the pooled numbers, the cells below also with a perfect filter fall strictly
+# between 0 and all cells below, and some cells are lowered and some emptied.
 set(pooled_below "")
-foreach(key cells_below_true_top cells_below_true_top_unseen cells_lowered_by_filters cells_emptied_by_filters)
+foreach(key cells_below_true_top cells_below_true_top_unseen cells_lowered_by_false_rejections cells_emptied_by_false_rejections)
   string(JSON v GET "${json}" pooled ${key})
   string(APPEND pooled_below " ${v}")
 endforeach()
@@ -192,7 +194,7 @@ if(NOT pooled_below STREQUAL " ${below} ${below_unseen} ${lowered} ${emptied}")
                       "${below} ${below_unseen} ${lowered} ${emptied}")
 endif()
 string(FIND "${out}" "cells more than 0.3 m below the lowest true top: ${below}, ${below_unseen} of them also with a perfect filter" at)
-string(FIND "${out}" "perfect filter's map: ${lowered} cells lowered by more than 0.3 m, ${emptied} left without a surface" at2)
+string(FIND "${out}" "cells): ${lowered} cells lowered by more than 0.3 m, ${emptied} left without a surface" at2)
 if(at LESS 0 OR at2 LESS 0 OR below_unseen EQUAL 0 OR below_unseen EQUAL below OR lowered EQUAL 0 OR emptied EQUAL 0)
   message(FATAL_ERROR "the printed line does not say ${below} cells below the true top (${below_unseen} unseen), "
                       "${lowered} lowered, ${emptied} emptied, or a count is 0 or the whole:\n${out}")
