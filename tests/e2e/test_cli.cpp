@@ -569,6 +569,21 @@ nlohmann::json run_and_evaluate(const std::vector<std::string>& extra, const std
   EXPECT_EQ(run_cli({"evaluate", "--truth", std::string(PCDP_SOURCE_DIR) + "/sample_scans", "--run", out, "-q"}).exit_code, 0);
   return nlohmann::json::parse(test::read_text(out + "/evaluation.json"));
 }
+
+/// pipelines/nodding_terrain.yaml without the given stages, written to `to` with its paths made
+/// absolute (they are relative to the file's folder).
+void write_main_pipeline_without(const std::vector<std::string>& stages, const std::string& to) {
+  std::string text = test::read_text(std::string(PCDP_SOURCE_DIR) + "/pipelines/nodding_terrain.yaml");
+  for (const std::string& stage : stages) {
+    const std::string line = "  - type: " + stage + "\n";
+    ASSERT_NE(text.find(line), std::string::npos) << stage;
+    text.replace(text.find(line), line.size(), "");
+  }
+  const std::string rel = "../sample_scans/";
+  for (std::size_t p = text.find(rel); p != std::string::npos; p = text.find(rel, p))
+    text.replace(p, rel.size(), std::string(PCDP_SOURCE_DIR) + "/sample_scans/");
+  test::write_text(to, text);
+}
 }  // namespace
 
 TEST(FullChain, FusingAllPassesBeatsEverySinglePass) {
@@ -591,17 +606,9 @@ TEST(FullChain, FusingAllPassesBeatsEverySinglePass) {
 TEST(FullChain, ConsistencyRaisesRecallWithinTheFalseRejectionBudget) {
   const std::string dir = test::fresh_dir();
   const std::string yaml = std::string(PCDP_SOURCE_DIR) + "/pipelines/nodding_terrain.yaml";
-  std::string text = test::read_text(yaml);
-  const std::string line = "  - type: check_consistency\n";
-  ASSERT_NE(text.find(line), std::string::npos);
-  text.replace(text.find(line), line.size(), "");
-  // Paths in the file are relative to its folder: keep the copy beside the original's inputs.
   const std::string without = dir + "/no_consistency.yaml";
-  std::string fixed = text;
-  const std::string rel = "../sample_scans/";
-  for (std::size_t p = fixed.find(rel); p != std::string::npos; p = fixed.find(rel, p))
-    fixed.replace(p, rel.size(), std::string(PCDP_SOURCE_DIR) + "/sample_scans/");
-  test::write_text(without, fixed);
+  write_main_pipeline_without({"check_consistency"}, without);
+  if (HasFatalFailure()) return;
   const auto with_c = run_and_evaluate({}, yaml, dir + "/with");
   const auto without_c = run_and_evaluate({}, without, dir + "/without");
   // Rays from the other passes see through veils and false ranges: every bad label keeps at
@@ -620,6 +627,24 @@ TEST(FullChain, ConsistencyRaisesRecallWithinTheFalseRejectionBudget) {
             << without_c["valid"]["false_rejection"] << " -> " << with_c["valid"]["false_rejection"] << "\n";
   EXPECT_GT(bad_with, bad_without);
   EXPECT_LE(with_c["valid"]["false_rejection"].get<double>(), 0.01);
+}
+
+TEST(FullChain, TheFiltersLeaveNoCellOffTheTrueSurface) {
+  // The sample's veils and false ranges stand more than 0.3 m above the true surface in a few
+  // cells when only registered; the main pipeline's filters leave none, above or below.
+  const std::string dir = test::fresh_dir();
+  const std::string yaml = std::string(PCDP_SOURCE_DIR) + "/pipelines/nodding_terrain.yaml";
+  write_main_pipeline_without({"reject_occlusion", "reject_mixed_pixels", "check_consistency"}, dir + "/register_only.yaml");
+  if (HasFatalFailure()) return;
+  const auto filtered = run_and_evaluate({}, yaml, dir + "/filtered");
+  const auto registered = run_and_evaluate({}, dir + "/register_only.yaml", dir + "/registered");
+  EXPECT_GT(registered["elevation"]["cells_above_by_more_than_0_3_m"].get<std::size_t>(), 0u);
+  EXPECT_EQ(filtered["elevation"]["cells_above_by_more_than_0_3_m"].get<std::size_t>(), 0u);
+  EXPECT_EQ(filtered["elevation"]["cells_below_by_more_than_0_3_m"].get<std::size_t>(), 0u);
+  // The evaluation's table says the same.
+  const auto res = run_cli({"evaluate", "--truth", std::string(PCDP_SOURCE_DIR) + "/sample_scans", "--run", dir + "/filtered"});
+  EXPECT_NE(res.out.find("cells more than 0.3 m above the true surface (phantom obstacles): 0, below it: 0"), std::string::npos)
+      << res.out;
 }
 
 TEST(Cli, AKilledRunLeavesNoFileThatLooksComplete) {

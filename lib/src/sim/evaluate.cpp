@@ -183,6 +183,18 @@ Evaluation evaluate_run(const std::string& truth_dir, const std::string& run_dir
       double elev = 0, var = 0;
       if (!c || !grid.surface(*c, elev, var)) continue;
       ++e.observed_cells;
+      // Off the true surface by more than 0.3 m, against the highest and the lowest true height
+      // over the cell and its 8 neighbours (a cell beside an edge may hold points of either side).
+      double hi = tz[i], lo = tz[i];
+      for (int dx = -1; dx <= 1; ++dx)
+        for (int dy = -1; dy <= 1; ++dy) {
+          const auto it = truth_z.find(k2(ix + dx, iy + dy));
+          if (it == truth_z.end()) continue;
+          hi = std::max(hi, it->second);
+          lo = std::min(lo, it->second);
+        }
+      e.cells_above += elev - hi > kOffTheSurface;
+      e.cells_below += lo - elev > kOffTheSurface;
       bool edge = false;
       for (int dx = -1; dx <= 1 && !edge; ++dx)
         for (int dy = -1; dy <= 1 && !edge; ++dy) {
@@ -227,7 +239,9 @@ std::string evaluation_table(const Evaluation& e) {
   if (e.has_elevation)
     os << "elevation: rmse " << std::setprecision(1) << e.elevation_rmse * 1000 << " mm (bias " << e.elevation_bias * 1000
        << " mm, |error| median " << e.elevation_abs_median * 1000 << " mm, p95 " << e.elevation_abs_p95 * 1000 << " mm) over " << e.scored_cells << " observed cells away from edges; coverage " << std::setprecision(3)
-       << e.coverage() << " (" << e.observed_cells << " of " << e.truth_cells << " true cells)\n";
+       << e.coverage() << " (" << e.observed_cells << " of " << e.truth_cells << " true cells); cells more than "
+       << std::setprecision(1) << kOffTheSurface << " m above the true surface (phantom obstacles): " << e.cells_above
+       << ", below it: " << e.cells_below << "\n";
   return os.str();
 }
 
@@ -248,7 +262,8 @@ std::string evaluation_json(const Evaluation& e) {
   if (e.has_elevation)
     j["elevation"] = {{"rmse", e.elevation_rmse}, {"bias", e.elevation_bias}, {"abs_median", e.elevation_abs_median},
                       {"abs_p95", e.elevation_abs_p95}, {"scored_cells", e.scored_cells},
-                      {"observed_cells", e.observed_cells}, {"truth_cells", e.truth_cells}, {"coverage", e.coverage()}};
+                      {"observed_cells", e.observed_cells}, {"truth_cells", e.truth_cells}, {"coverage", e.coverage()},
+                      {"cells_above_by_more_than_0_3_m", e.cells_above}, {"cells_below_by_more_than_0_3_m", e.cells_below}};
   return j.dump(2) + "\n";
 }
 

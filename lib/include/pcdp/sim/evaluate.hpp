@@ -20,6 +20,10 @@ struct LabelScore {
   }
 };
 
+/// How far off the true surface an elevation cell may lie before it counts as a phantom obstacle
+/// (above) or a missing one (below), m.
+inline constexpr double kOffTheSurface = 0.3;
+
 struct Evaluation {
   std::uint64_t returns = 0;
   LabelHistogram truth{};
@@ -39,6 +43,9 @@ struct Evaluation {
   std::uint64_t truth_cells = 0, observed_cells = 0;  ///< of the true grid, observed by the run
   std::uint64_t scored_cells = 0;                      ///< observed, away from edges of the true surface
   double elevation_rmse = 0, elevation_bias = 0, elevation_abs_median = 0, elevation_abs_p95 = 0;
+  /// Observed cells (edges included) whose surface lies more than kOffTheSurface above the highest
+  /// true height over the cell and its 8 neighbours (phantom obstacles), or below the lowest.
+  std::uint64_t cells_above = 0, cells_below = 0;
   double coverage() const { return truth_cells ? static_cast<double>(observed_cells) / static_cast<double>(truth_cells) : 0.0; }
 };
 
