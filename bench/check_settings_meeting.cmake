@@ -24,6 +24,16 @@ function(to_ten_thousandths value out)
   math(EXPR v "(${whole} * 100000 + ${frac} + 5) / 10")
   set(${out} ${v} PARENT_SCOPE)
 endfunction()
+# read_row(K VAR=FIELD...): sets each VAR to FIELD of row K of the sweep's settings.
+function(read_row k)
+  foreach(pair ${ARGN})
+    string(REPLACE "=" ";" var_field "${pair}")
+    list(GET var_field 0 var)
+    list(GET var_field 1 field)
+    string(JSON value GET "${json}" settings ${k} ${field})
+    set(${var} "${value}" PARENT_SCOPE)
+  endforeach()
+endfunction()
 string(JSON n LENGTH "${json}" settings)
 set(recall 0)
 set(valid 0)
@@ -44,11 +54,8 @@ foreach(k RANGE ${last})
   # The map's other side: the cells more than 0.3 m below the lowest true top a perfect filter's
   # map shares are among them; the cells the false rejections lower or empty are among the
   # perfect map's cells, and lowered and emptied are disjoint.
-  string(JSON cb GET "${json}" settings ${k} cells_below_true_top)
-  string(JSON cu GET "${json}" settings ${k} cells_below_true_top_unseen)
-  string(JSON cp GET "${json}" settings ${k} perfect_filter_cells)
-  string(JSON cl GET "${json}" settings ${k} cells_lowered_by_false_rejections)
-  string(JSON ce GET "${json}" settings ${k} cells_emptied_by_false_rejections)
+  read_row(${k} cb=cells_below_true_top cu=cells_below_true_top_unseen cp=perfect_filter_cells
+           cl=cells_lowered_by_false_rejections ce=cells_emptied_by_false_rejections)
   math(EXPR cle "${cl} + ${ce}")
   if(cu GREATER cb OR cle GREATER cp)
     message(FATAL_ERROR "row ${k}: ${cb} cells below the true top (${cu} also with a perfect filter); ${cl} lowered and "
@@ -61,11 +68,8 @@ foreach(k RANGE ${last})
   # The kept mixed pixels more than 0.3 m above the true top, those among them on a line next to a
   # nod turn and those on the last line before one: each at most the one before (upper bounds;
   # the sums below must also fall strictly between 0 and the whole).
-  string(JSON pm GET "${json}" settings ${k} phantom_mixed_pixels)
-  string(JSON pt GET "${json}" settings ${k} phantom_mixed_pixels_next_to_nod_turn)
-  string(JSON pl GET "${json}" settings ${k} phantom_mixed_pixels_on_last_line_before_nod_turn)
-  string(JSON mt GET "${json}" settings ${k} mixed_next_to_nod_turn)
-  string(JSON n_mixed GET "${json}" settings ${k} mixed)
+  read_row(${k} pm=phantom_mixed_pixels pt=phantom_mixed_pixels_next_to_nod_turn
+           pl=phantom_mixed_pixels_on_last_line_before_nod_turn mt=mixed_next_to_nod_turn n_mixed=mixed)
   if(pt GREATER pm OR pl GREATER pt OR pt GREATER mt OR mt GREATER n_mixed)
     message(FATAL_ERROR "row ${k}: ${pt} kept mixed pixels above the true top next to a nod turn (${pl} on the "
                         "last line before), of ${pm}; ${mt} of all ${n_mixed} mixed pixels next to one")
@@ -75,11 +79,8 @@ foreach(k RANGE ${last})
   math(EXPR turn_all "${turn_all} + ${mt}")
   math(EXPR rows_phantom_mixed "${rows_phantom_mixed} + ${pm}")
   # What check_consistency removes after the filters: among the returns the filters kept.
-  string(JSON cv GET "${json}" settings ${k} check_consistency_valid)
-  string(JSON cm GET "${json}" settings ${k} check_consistency_mixed)
-  string(JSON n_valid GET "${json}" settings ${k} valid)
-  string(JSON n_valid_rejected GET "${json}" settings ${k} valid_rejected)
-  string(JSON n_mixed_rejected GET "${json}" settings ${k} mixed_rejected)
+  read_row(${k} cv=check_consistency_valid cm=check_consistency_mixed n_valid=valid n_valid_rejected=valid_rejected
+           n_mixed_rejected=mixed_rejected)
   math(EXPR kept_valid "${n_valid} - ${n_valid_rejected}")
   math(EXPR kept_mixed "${n_mixed} - ${n_mixed_rejected}")
   if(cv GREATER kept_valid OR cm GREATER kept_mixed)
@@ -87,9 +88,7 @@ foreach(k RANGE ${last})
   endif()
   math(EXPR cc_valid "${cc_valid} + ${cv}")
   math(EXPR cc_mixed "${cc_mixed} + ${cm}")
-  string(JSON r GET "${json}" settings ${k} mixed_recall)
-  string(JSON v GET "${json}" settings ${k} valid_rejected_pct)
-  string(JSON p GET "${json}" settings ${k} phantom_cells)
+  read_row(${k} r=mixed_recall v=valid_rejected_pct p=phantom_cells)
   # CMake compares integers only: the 4-decimal fields in units of 0.0001.
   to_ten_thousandths("${r}" r_int)
   to_ten_thousandths("${v}" v_int)

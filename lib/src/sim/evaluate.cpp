@@ -183,24 +183,25 @@ Evaluation evaluate_run(const std::string& truth_dir, const std::string& run_dir
       double elev = 0, var = 0;
       if (!c || !grid.surface(*c, elev, var)) continue;
       ++e.observed_cells;
-      // Off the true surface by more than 0.3 m, against the highest and the lowest true height
-      // over the cell and its 8 neighbours (a cell beside an edge may hold points of either side).
+      // The highest and lowest true height over the cell and its 8 neighbours: the cell is off the
+      // true surface when it lies more than kOffTheSurface above the one or below the other (a cell
+      // beside an edge may hold points of either side), and at an edge of the true surface (not
+      // scored) when a neighbour is missing or differs from its own height by more than 5 cm.
       double hi = tz[i], lo = tz[i];
+      bool edge = false;
       for (int dx = -1; dx <= 1; ++dx)
         for (int dy = -1; dy <= 1; ++dy) {
           const auto it = truth_z.find(k2(ix + dx, iy + dy));
-          if (it == truth_z.end()) continue;
+          if (it == truth_z.end()) {
+            edge = true;
+            continue;
+          }
           hi = std::max(hi, it->second);
           lo = std::min(lo, it->second);
         }
       e.cells_above += elev - hi > kOffTheSurface;
       e.cells_below += lo - elev > kOffTheSurface;
-      bool edge = false;
-      for (int dx = -1; dx <= 1 && !edge; ++dx)
-        for (int dy = -1; dy <= 1 && !edge; ++dy) {
-          const auto it = truth_z.find(k2(ix + dx, iy + dy));
-          edge = it == truth_z.end() || std::fabs(it->second - tz[i]) > 0.05;
-        }
+      edge = edge || hi - tz[i] > 0.05 || tz[i] - lo > 0.05;
       if (edge) continue;
       const double d = elev - tz[i];
       se += d * d;
